@@ -1,0 +1,54 @@
+"""NumPy reference implementation of α-RATTLE for small systems, and test problems.
+
+Used by the tests to check the OpenMM integrators and the theory: the step itself
+(:func:`alpha_rattle_step`), geometric checks (:func:`symplecticity_defect`) and
+ready problems (pendulums, a harmonic oscillator, rigid molecules in vacuum).
+"""
+
+from .geometry import symplectic_form, symplecticity_defect, tangent_vectors
+from .problems import (
+    angular_momentum,
+    harmonic_oscillator,
+    linear_momentum,
+    planar_pendulum,
+    planar_pendulum_period,
+    planar_pendulum_start,
+    rigid_diatomics,
+    spherical_pendulum,
+    spherical_pendulum_start,
+    to_openmm_system,
+    water_cluster,
+)
+from .step import (
+    ConstrainedProblem,
+    StepInfo,
+    alpha_rattle_step,
+    integrate,
+    project_to_manifold,
+    project_velocities,
+    solve_positions,
+)
+
+__all__ = [
+    "ConstrainedProblem",
+    "StepInfo",
+    "alpha_rattle_step",
+    "angular_momentum",
+    "harmonic_oscillator",
+    "integrate",
+    "linear_momentum",
+    "planar_pendulum",
+    "planar_pendulum_period",
+    "planar_pendulum_start",
+    "project_to_manifold",
+    "project_velocities",
+    "rigid_diatomics",
+    "solve_positions",
+    "spherical_pendulum",
+    "spherical_pendulum_start",
+    "symplectic_form",
+    "symplecticity_defect",
+    "tangent_vectors",
+    "to_openmm_system",
+    "water_cluster",
+]

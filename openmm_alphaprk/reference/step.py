@@ -1,0 +1,249 @@
+"""The α-RATTLE step in NumPy, for small constrained systems given by callables.
+
+This is the reference the OpenMM integrator and the theory are tested against
+(design doc §3). All arrays are flat, of length n = number of degrees of freedom;
+the units are whatever the problem uses (OpenMM units for molecular problems).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+Array = np.ndarray
+
+
+@dataclass(frozen=True)
+class ConstrainedProblem:
+    """A Hamiltonian system with holonomic constraints.
+
+    H = ½ vᵀ M v + U(q), g(q) = 0, with G = ∂g/∂q.
+
+    Parameters
+    ----------
+    masses
+        Mass of each degree of freedom, shape (n,).
+    potential
+        U(q) → float.
+    force
+        F(q) = −∇U(q) → shape (n,).
+    constraints
+        g(q) → shape (k,); ``None`` for an unconstrained system.
+    constraint_jacobian
+        G(q) → shape (k, n).
+    name
+        A label.
+    """
+
+    masses: Array
+    potential: Callable[[Array], float]
+    force: Callable[[Array], Array]
+    constraints: Callable[[Array], Array] | None = None
+    constraint_jacobian: Callable[[Array], Array] | None = None
+    name: str = "problem"
+    metadata: dict = field(default_factory=dict)
+
+    @property
+    def n_dof(self) -> int:
+        return int(np.size(self.masses))
+
+    @property
+    def inverse_masses(self) -> Array:
+        return 1.0 / np.asarray(self.masses, dtype=float)
+
+    def g(self, q: Array) -> Array:
+        return np.zeros(0) if self.constraints is None else np.atleast_1d(self.constraints(q))
+
+    def G(self, q: Array) -> Array:
+        if self.constraint_jacobian is None:
+            return np.zeros((0, self.n_dof))
+        return np.atleast_2d(self.constraint_jacobian(q))
+
+    def energy(self, q: Array, v: Array) -> float:
+        """Total energy H = ½ vᵀMv + U(q)."""
+        return 0.5 * float(np.sum(self.masses * v * v)) + float(self.potential(q))
+
+
+def solve_positions(
+    problem: ConstrainedProblem, x_ref: Array, x_free: Array, tol: float = 1e-14, max_iter: int = 100
+) -> Array:
+    """SHAKE: x = x_free − M⁻¹ G(x_ref)ᵀ λ with g(x) = 0, by Newton's method on λ."""
+    G_ref = problem.G(x_ref)
+    if G_ref.shape[0] == 0:
+        return x_free.copy()
+    direction = problem.inverse_masses[:, None] * G_ref.T  # (n, k)
+    lam = np.zeros(G_ref.shape[0])
+    x = x_free.copy()
+    for _ in range(max_iter):
+        residual = problem.g(x)
+        if np.max(np.abs(residual)) < tol:
+            return x
+        jac = -problem.G(x) @ direction
+        lam -= np.linalg.solve(jac, residual)
+        x = x_free - direction @ lam
+    raise RuntimeError(f"SHAKE did not converge in {max_iter} iterations (|g| = {np.max(np.abs(residual)):.3g}).")
+
+
+def project_velocities(problem: ConstrainedProblem, x: Array, v_free: Array) -> Array:
+    """RATTLE: v = v_free − M⁻¹ G(x)ᵀ μ with G(x) v = 0."""
+    G = problem.G(x)
+    if G.shape[0] == 0:
+        return v_free.copy()
+    minv_Gt = problem.inverse_masses[:, None] * G.T
+    mu = np.linalg.solve(G @ minv_Gt, G @ v_free)
+    return v_free - minv_Gt @ mu
+
+
+@dataclass
+class StepInfo:
+    """Diagnostics of one reference step."""
+
+    midpoint_iterations: int = 0
+    force_evaluations: int = 0
+    midpoint_change: float = 0.0
+
+
+def alpha_rattle_step(
+    problem: ConstrainedProblem,
+    x0: Array,
+    v0: Array,
+    h: float,
+    alpha: float,
+    *,
+    f0: Array | None = None,
+    midpoint_tolerance: float = 1e-15,
+    max_midpoint_iterations: int = 100,
+    one_pass: bool = False,
+    midpoint_solver: str = "fixed-point",
+    info: StepInfo | None = None,
+) -> tuple[Array, Array, Array]:
+    """One α-RATTLE step (design doc §3).
+
+    Parameters
+    ----------
+    problem
+        The constrained system.
+    x0, v0
+        A consistent state (g(x0) = 0, G(x0) v0 = 0).
+    h
+        Step size (may be negative, as in composition methods).
+    alpha
+        The method parameter.
+    f0
+        F(x0) if already known.
+    midpoint_tolerance
+        Stop the midpoint iteration when the max-norm change of x1 is below this.
+    max_midpoint_iterations
+        Cap on midpoint iterations (an error is raised if it is reached).
+    one_pass
+        Take the midpoint force at the RATTLE-predicted midpoint only (the
+        deliberately non-symplectic variant the tests must catch).
+    midpoint_solver
+        ``"fixed-point"`` (what the OpenMM integrator does; converges while
+        |α| h²ω²/4 < 1) or ``"newton"`` (finite-difference Jacobian; for small
+        systems, e.g. to study the exact map's stability where fixed-point
+        iteration diverges).
+    info
+        Filled with diagnostics if given.
+
+    Returns
+    -------
+    x1, v1, f1
+        The new state and the force at x1.
+    """
+    info = info if info is not None else StepInfo()
+    minv = problem.inverse_masses
+    f0 = problem.force(x0) if f0 is None else f0
+    base = x0 + h * v0
+
+    def positions(f_mid: Array) -> Array:
+        return solve_positions(problem, x0, base + h * h * minv * ((0.5 - alpha) * f0 + alpha * f_mid))
+
+    f_mid = f0
+    x1 = positions(f_mid)
+    if alpha != 0.0 and midpoint_solver == "newton":
+        x1, f_mid = _newton_midpoint(problem, x0, x1, positions, midpoint_tolerance, max_midpoint_iterations, info)
+    elif alpha != 0.0:
+        if midpoint_solver != "fixed-point":
+            raise ValueError(f"midpoint_solver must be 'fixed-point' or 'newton', got {midpoint_solver!r}.")
+        for iteration in range(1, max_midpoint_iterations + 1):
+            f_mid = problem.force(0.5 * (x0 + x1))
+            info.force_evaluations += 1
+            x1_new = positions(f_mid)
+            change = float(np.max(np.abs(x1_new - x1)))
+            x1 = x1_new
+            info.midpoint_iterations = iteration
+            info.midpoint_change = change
+            if one_pass or change <= midpoint_tolerance:
+                break
+        else:
+            raise RuntimeError(
+                f"midpoint iteration did not converge in {max_midpoint_iterations} iterations "
+                f"(last change {change:.3g}); reduce h or |alpha|."
+            )
+    f1 = problem.force(x1)
+    info.force_evaluations += 1
+    v1 = project_velocities(problem, x1, (x1 - x0) / h + h * minv * (alpha * f_mid + (0.5 - alpha) * f1))
+    return x1, v1, f1
+
+
+def _newton_midpoint(problem, x0, x1, positions, tol, max_iter, info):
+    """Solve x1 = positions(F((x0 + x1)/2)) by Newton's method with a finite-difference Jacobian."""
+
+    def residual(x):
+        return x - positions(problem.force(0.5 * (x0 + x)))
+
+    n = x1.size
+    for iteration in range(1, max_iter + 1):
+        r = residual(x1)
+        scale = 1e-7 * max(1.0, float(np.max(np.abs(x1))))
+        jac = np.empty((n, n))
+        for k in range(n):
+            e = np.zeros(n)
+            e[k] = scale
+            jac[:, k] = (residual(x1 + e) - residual(x1 - e)) / (2 * scale)
+        info.force_evaluations += 2 * n + 1
+        step = np.linalg.lstsq(jac, r, rcond=None)[0]
+        x1 = positions(problem.force(0.5 * (x0 + (x1 - step))))
+        info.midpoint_iterations = iteration
+        info.midpoint_change = float(np.max(np.abs(step)))
+        if info.midpoint_change <= tol or info.midpoint_change <= 1e-12 * max(1.0, float(np.max(np.abs(x1)))):
+            f_mid = problem.force(0.5 * (x0 + x1))
+            return positions(f_mid), f_mid
+    raise RuntimeError(f"Newton midpoint solve did not converge in {max_iter} iterations.")
+
+
+def integrate(
+    problem: ConstrainedProblem,
+    x0: Array,
+    v0: Array,
+    h: float,
+    n_steps: int,
+    alpha: float = 0.0,
+    *,
+    record: bool = False,
+    **step_options,
+) -> tuple[Array, Array] | tuple[Array, Array, Array, Array]:
+    """Take ``n_steps`` α-RATTLE steps; with ``record`` also return the trajectory.
+
+    Returns (x, v) at the end, or (x, v, xs, vs) with xs, vs of shape (n_steps+1, n).
+    """
+    x, v = np.array(x0, dtype=float), np.array(v0, dtype=float)
+    f = problem.force(x)
+    xs, vs = [x], [v]
+    for _ in range(n_steps):
+        x, v, f = alpha_rattle_step(problem, x, v, h, alpha, f0=f, **step_options)
+        if record:
+            xs.append(x)
+            vs.append(v)
+    if record:
+        return x, v, np.array(xs), np.array(vs)
+    return x, v
+
+
+def project_to_manifold(problem: ConstrainedProblem, x: Array, v: Array) -> tuple[Array, Array]:
+    """Nearest consistent state: positions onto g = 0 (along G(x)ᵀ), then velocities."""
+    x = solve_positions(problem, x, x)
+    return x, project_velocities(problem, x, v)
