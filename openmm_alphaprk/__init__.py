@@ -8,7 +8,11 @@ from .integrators import (
     restore_integrator,
 )
 
-__all__ = ["AlphaRattleIntegrator", "MasslessParticleError",
+__all__ = [
+    "AlphaRattleIntegrator",
+    "MasslessParticleError",
     "MidpointConvergenceError",
-    "RattleIntegrator", "restore_integrator"]
+    "RattleIntegrator",
+    "restore_integrator",
+]
 __version__ = "0.1.0"

@@ -28,6 +28,7 @@ def to_float(value: object, unit_: unit.Unit, name: str, *, positive: bool = Fal
         If ``value`` is neither a number nor a Quantity of compatible units.
     ValueError
         If ``value`` is not finite, or not positive when ``positive`` is set.
+
     """
     if unit.is_quantity(value):
         if not value.unit.is_compatible(unit_):

@@ -81,7 +81,7 @@ class _ConstrainedVerletBase(mm.CustomIntegrator):
         self.addComputeGlobal("step_force_evaluations", "0")
 
     def _add_position_solve(self, force_term: str, h: str = "dt") -> None:
-        """x ← x0 + h v0 + h² M⁻¹(force_term), then SHAKE/SETTLE along G(reference)."""
+        """Set x ← x0 + h v0 + h² M⁻¹(force_term), then SHAKE/SETTLE along G(reference)."""
         self.addComputePerDof("x", f"x0 + {h}*v0 + {h}*{h}*({force_term})/m")
         self.addConstrainPositions()
 
@@ -94,7 +94,7 @@ class _ConstrainedVerletBase(mm.CustomIntegrator):
         self.addComputeGlobal("step_force_evaluations", "step_force_evaluations + 1")
 
     def _add_velocity_update(self, force_term: str, h: str = "dt") -> None:
-        """v ← (x1 − x0)/h + h M⁻¹(force_term), then RATTLE velocity projection at x1.
+        """Set v ← (x1 − x0)/h + h M⁻¹(force_term), then RATTLE velocity projection at x1.
 
         ``force_term`` uses ``f``, the force at the current positions x1: this is the
         step's final force evaluation, reused at the start of the next step.

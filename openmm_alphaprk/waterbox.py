@@ -60,6 +60,7 @@ def build_water_box(
     WaterBox
         With ``removeCMMotion=False`` (NVE bookkeeping), constrained positions and
         velocities satisfying the velocity constraints.
+
     """
     edge = to_float(box_size, unit.nanometers, "box_size", positive=True)
     rc = to_float(cutoff, unit.nanometers, "cutoff", positive=True)

@@ -53,8 +53,10 @@ def test_alpha_zero_reproduces_verlet_integrator_positions(water_box):
     # VerletIntegrator is leapfrog: it reads velocities as v(-h/2)
     verlet = mm.VerletIntegrator(h)
     verlet.setConstraintTolerance(1e-10)
-    forces = ctx.getState(getForces=True).getForces(asNumpy=True).value_in_unit(
-        unit.kilojoules_per_mole / unit.nanometer
+    forces = (
+        ctx.getState(getForces=True)
+        .getForces(asNumpy=True)
+        .value_in_unit(unit.kilojoules_per_mole / unit.nanometer)
     )
     masses = np.array([system.getParticleMass(i).value_in_unit(unit.dalton) for i in range(len(x0))])
     leap = make_context(system, verlet, x0, v0 - 0.5 * h * forces / masses[:, None])
@@ -86,7 +88,9 @@ def test_alpha_zero_is_rattle_step_for_step(water_box):
 # O-H) off the exact constraint lengths on Reference and CPU alike, while CCMA/SHAKE
 # bonds are exact to the tolerance: the tight comparison uses diatomics.
 @pytest.mark.parametrize("alpha", ALPHAS)
-@pytest.mark.parametrize(("make_problem", "position_tolerance"), [(rigid_diatomics, 1e-11), (water_cluster, 2e-9)])
+@pytest.mark.parametrize(
+    ("make_problem", "position_tolerance"), [(rigid_diatomics, 1e-11), (water_cluster, 2e-9)]
+)
 def test_openmm_agrees_with_numpy_reference_step_for_step(alpha, make_problem, position_tolerance):
     problem, x0, v0 = make_problem(seed=2)
     system = to_openmm_system(problem)
@@ -171,7 +175,9 @@ def test_water_cluster_in_vacuum_keeps_linear_and_angular_momentum(alpha):
 
 
 def test_pme_momentum_change_is_no_worse_than_rattle(water_box):
-    masses = np.array([water_box.system.getParticleMass(i).value_in_unit(unit.dalton) for i in range(water_box.n_atoms)])
+    masses = np.array(
+        [water_box.system.getParticleMass(i).value_in_unit(unit.dalton) for i in range(water_box.n_atoms)]
+    )
     p0 = masses @ water_box.velocities
     changes = {}
     for alpha in (0.0, 0.5):
@@ -244,7 +250,9 @@ def test_xml_round_trip_and_get_integrator_give_the_class_back(water_box):
     assert isinstance(bound, AlphaRattleIntegrator) and bound.steps_taken == 5
     bound.alpha = 0.25
     assert copy.alpha == 0.25  # the same C++ object
-    rattle = restore_integrator(mm.XmlSerializer.deserialize(mm.XmlSerializer.serialize(RattleIntegrator(0.001))))
+    rattle = restore_integrator(
+        mm.XmlSerializer.deserialize(mm.XmlSerializer.serialize(RattleIntegrator(0.001)))
+    )
     assert type(rattle) is RattleIntegrator
     assert isinstance(pickle.loads(pickle.dumps(original)), AlphaRattleIntegrator)
     with pytest.raises(TypeError, match="not created by openmm_alphaprk"):
@@ -273,9 +281,12 @@ def test_virtual_sites_are_stale_inside_a_step_and_are_refused():
     forcefield = app.ForceField("tip4pew.xml")
     modeller = app.Modeller(app.Topology(), [])
     modeller.addSolvent(forcefield, model="tip4pew", boxSize=mm.Vec3(1.6, 1.6, 1.6) * unit.nanometers)
-    system = forcefield.createSystem(modeller.topology, nonbondedMethod=app.PME, nonbondedCutoff=0.7,
-                                     rigidWater=True, removeCMMotion=False)
-    massive = np.array([system.getParticleMass(i).value_in_unit(unit.dalton) > 0 for i in range(system.getNumParticles())])
+    system = forcefield.createSystem(
+        modeller.topology, nonbondedMethod=app.PME, nonbondedCutoff=0.7, rigidWater=True, removeCMMotion=False
+    )
+    massive = np.array(
+        [system.getParticleMass(i).value_in_unit(unit.dalton) > 0 for i in range(system.getNumParticles())]
+    )
     # the platform fact behind the refusal: a force taken inside a CustomIntegrator
     # step does not see virtual sites placed at the moved positions
     probe = mm.CustomIntegrator(0.001)
@@ -295,7 +306,11 @@ def test_virtual_sites_are_stale_inside_a_step_and_are_refused():
     inside = np.array([list(f) for f in probe.getPerDofVariableByName("f_inside")])
     ctx.setPositions(x0 + 0.01 * displacement)
     ctx.computeVirtualSites()
-    true = ctx.getState(getForces=True).getForces(asNumpy=True).value_in_unit(unit.kilojoules_per_mole / unit.nanometer)
+    true = (
+        ctx.getState(getForces=True)
+        .getForces(asNumpy=True)
+        .value_in_unit(unit.kilojoules_per_mole / unit.nanometer)
+    )
     assert np.max(np.abs(inside - true)[massive]) > 1.0
 
     for integrator in (AlphaRattleIntegrator(0.002, alpha=0.5), RattleIntegrator(0.002)):
@@ -318,6 +333,7 @@ def test_iteration_cap_and_force_evaluation_counts(water_box):
     capped = AlphaRattleIntegrator(0.002, alpha=0.5, max_midpoint_iterations=2, midpoint_tolerance=1e-6)
     ctx = make_context(water_box.system, capped, water_box.positions, water_box.velocities)
     capped.step(4)
+    assert capped.steps_taken == ctx.getStepCount() == 4
     assert capped.midpoint_iterations <= 2
     assert capped.last_step_force_evaluations == capped.midpoint_iterations + 1
     assert 2.0 <= capped.force_evaluations_per_step <= 3.0
@@ -326,12 +342,18 @@ def test_iteration_cap_and_force_evaluation_counts(water_box):
 def test_step_programs_are_small_and_start_quickly(water_box):
     for integrator in (RattleIntegrator(0.002), AlphaRattleIntegrator(0.002, alpha=0.5)):
         blocks = sum(
-            integrator.getComputationStep(i)[0] in (mm.CustomIntegrator.WhileBlockStart, mm.CustomIntegrator.IfBlockStart)
+            integrator.getComputationStep(i)[0]
+            in (mm.CustomIntegrator.WhileBlockStart, mm.CustomIntegrator.IfBlockStart)
             for i in range(integrator.getNumComputations())
         )
         assert blocks <= 5
-        ctx = make_context(water_box.system, integrator, water_box.positions, water_box.velocities,
-                           mm.Platform.getPlatformByName("CPU"))
+        ctx = make_context(
+            water_box.system,
+            integrator,
+            water_box.positions,
+            water_box.velocities,
+            mm.Platform.getPlatformByName("CPU"),
+        )
         start = time.perf_counter()
         integrator.step(1)
         assert time.perf_counter() - start < 5.0
@@ -349,7 +371,11 @@ def test_step_programs_are_small_and_start_quickly(water_box):
         ({"timestep": 0.002, "alpha": float("inf")}, ValueError, "alpha must be finite"),
         ({"timestep": 0.002, "alpha": "big"}, TypeError, "alpha must be a number"),
         ({"timestep": 0.002, "alpha": 1 * unit.nanometers}, TypeError, "alpha must be dimensionless"),
-        ({"timestep": 0.002, "constraint_tolerance": 0.0}, ValueError, "constraint_tolerance must be positive"),
+        (
+            {"timestep": 0.002, "constraint_tolerance": 0.0},
+            ValueError,
+            "constraint_tolerance must be positive",
+        ),
         ({"timestep": 0.002, "midpoint_tolerance": -1e-9}, ValueError, "midpoint_tolerance must be positive"),
         ({"timestep": 0.002, "max_midpoint_iterations": 0}, ValueError, "positive integer"),
         ({"timestep": 0.002, "max_midpoint_iterations": 2.5}, ValueError, "positive integer"),

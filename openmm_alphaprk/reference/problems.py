@@ -63,7 +63,10 @@ def spherical_pendulum(kappa: float = 0.0) -> ConstrainedProblem:
 
 
 def spherical_pendulum_start() -> tuple[Array, Array]:
-    """q₀ = (sin 1.3, 0, cos 1.3), p₀ = (3 cos 1.3, 6.5, −3 sin 1.3): H₀ = 25.8924988…, L₃ = 6.2631282…"""
+    """Return the design doc's start: H₀ = 25.8924988…, L₃ = 6.2631282….
+
+    q₀ = (sin 1.3, 0, cos 1.3), p₀ = (3 cos 1.3, 6.5, −3 sin 1.3).
+    """
     return (
         np.array([np.sin(1.3), 0.0, np.cos(1.3)]),
         np.array([3 * np.cos(1.3), 6.5, -3 * np.sin(1.3)]),
@@ -262,7 +265,7 @@ def linear_momentum(problem: ConstrainedProblem, v: Array) -> Array:
 
 
 def to_openmm_system(problem: ConstrainedProblem):
-    """The ``openmm.System`` of a molecular problem: NoCutoff nonbonded force, constraints."""
+    """Build the ``openmm.System`` of a molecular problem: NoCutoff nonbonded force, constraints."""
     import openmm as mm
 
     model: MolecularModel = problem.metadata["model"]

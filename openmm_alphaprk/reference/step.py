@@ -35,6 +35,7 @@ class ConstrainedProblem:
         G(q) → shape (k, n).
     name
         A label.
+
     """
 
     masses: Array
@@ -83,7 +84,9 @@ def solve_positions(
         jac = -problem.G(x) @ direction
         lam -= np.linalg.solve(jac, residual)
         x = x_free - direction @ lam
-    raise RuntimeError(f"SHAKE did not converge in {max_iter} iterations (|g| = {np.max(np.abs(residual)):.3g}).")
+    raise RuntimeError(
+        f"SHAKE did not converge in {max_iter} iterations (|g| = {np.max(np.abs(residual)):.3g})."
+    )
 
 
 def project_velocities(problem: ConstrainedProblem, x: Array, v_free: Array) -> Array:
@@ -152,6 +155,7 @@ def alpha_rattle_step(
     -------
     x1, v1, f1
         The new state and the force at x1.
+
     """
     info = info if info is not None else StepInfo()
     minv = problem.inverse_masses
@@ -164,7 +168,9 @@ def alpha_rattle_step(
     f_mid = f0
     x1 = positions(f_mid)
     if alpha != 0.0 and midpoint_solver == "newton":
-        x1, f_mid = _newton_midpoint(problem, x0, x1, positions, midpoint_tolerance, max_midpoint_iterations, info)
+        x1, f_mid = _newton_midpoint(
+            problem, x0, x1, positions, midpoint_tolerance, max_midpoint_iterations, info
+        )
     elif alpha != 0.0:
         if midpoint_solver != "fixed-point":
             raise ValueError(f"midpoint_solver must be 'fixed-point' or 'newton', got {midpoint_solver!r}.")

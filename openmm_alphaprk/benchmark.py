@@ -1,0 +1,216 @@
+"""Cost benchmark: ms/step and force evaluations/step against ``VerletIntegrator``.
+
+Every integrator starts from the same equilibrated TIP3P state on the same platform
+and step; the timings are interleaved over several rounds and the median is taken,
+so the ratios to ``VerletIntegrator`` come from the same run on the same machine.
+A separate short pass records the RMS of H − E0 (every step) for each integrator.
+
+Run ``python -m openmm_alphaprk.benchmark --help`` for the options.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import sys
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass
+
+import numpy as np
+import openmm as mm
+import openmm.unit as unit
+
+from .integrators import AlphaRattleIntegrator, RattleIntegrator
+from .waterbox import WaterBox, build_water_box
+
+
+@dataclass
+class BenchmarkRow:
+    """One integrator's measurements."""
+
+    name: str
+    ms_per_step: float
+    time_ratio: float
+    force_evaluations_per_step: float
+    energy_rms: float
+
+
+def default_integrators(timestep: float) -> dict[str, Callable[[], mm.Integrator]]:
+    """Return the integrators of the core benchmark, by display name."""
+    return {
+        "VerletIntegrator": lambda: mm.VerletIntegrator(timestep),
+        "RattleIntegrator": lambda: RattleIntegrator(timestep),
+        "AlphaRattle a=0": lambda: AlphaRattleIntegrator(timestep, alpha=0.0),
+        "AlphaRattle a=1/6": lambda: AlphaRattleIntegrator(timestep, alpha=1 / 6),
+        "AlphaRattle a=1/2": lambda: AlphaRattleIntegrator(timestep, alpha=0.5),
+    }
+
+
+def _context(box: WaterBox, integrator: mm.Integrator, platform: mm.Platform, tolerance: float) -> mm.Context:
+    integrator.setConstraintTolerance(tolerance)
+    context = mm.Context(box.system, integrator, platform)
+    context.setPositions(box.positions)
+    context.setVelocities(box.velocities)
+    return context
+
+
+def _total_energy(context: mm.Context) -> float:
+    state = context.getState(getEnergy=True)
+    return (state.getPotentialEnergy() + state.getKineticEnergy()).value_in_unit(unit.kilojoules_per_mole)
+
+
+def run_benchmark(
+    box: WaterBox,
+    integrators: dict[str, Callable[[], mm.Integrator]],
+    *,
+    platform: str = "CPU",
+    steps: int = 100,
+    rounds: int = 3,
+    energy_steps: int = 100,
+    constraint_tolerance: float = 1e-8,
+    progress: bool = True,
+) -> list[BenchmarkRow]:
+    """Time each integrator and measure its energy fluctuation on the same state.
+
+    Parameters
+    ----------
+    box
+        The system and its equilibrated state.
+    integrators
+        Factories by display name; the first is the baseline of the time ratios.
+    platform
+        OpenMM platform name.
+    steps
+        Steps timed per integrator per round.
+    rounds
+        Interleaved timing rounds; the median ms/step is reported.
+    energy_steps
+        Steps of the separate energy pass (energy read after every step).
+    constraint_tolerance
+        Applied to every integrator.
+    progress
+        Print progress to stderr.
+
+    Returns
+    -------
+    list of BenchmarkRow
+        In the order of ``integrators``.
+
+    """
+    plat = mm.Platform.getPlatformByName(platform)
+    contexts = {name: _context(box, make(), plat, constraint_tolerance) for name, make in integrators.items()}
+    for context in contexts.values():
+        context.getIntegrator().step(2)  # program analysis and first force evaluations
+    evaluations_before = {name: _force_evaluations(context) for name, context in contexts.items()}
+    times: dict[str, list[float]] = {name: [] for name in contexts}
+    for round_index in range(rounds):
+        for name, context in contexts.items():
+            if progress:
+                print(f"round {round_index + 1}/{rounds}: {name}", file=sys.stderr, flush=True)
+            start = time.perf_counter()
+            context.getIntegrator().step(steps)
+            times[name].append((time.perf_counter() - start) / steps * 1e3)
+    rows = []
+    baseline = statistics.median(times[next(iter(times))])
+    for name, context in contexts.items():
+        evaluations = _force_evaluations(context)
+        per_step = (
+            (evaluations - evaluations_before[name]) / (steps * rounds) if evaluations is not None else 1.0
+        )
+        ms = statistics.median(times[name])
+        rows.append(BenchmarkRow(name, ms, ms / baseline, per_step, float("nan")))
+    del contexts
+    for row, (name, make) in zip(rows, integrators.items()):
+        if progress:
+            print(f"energy pass: {name}", file=sys.stderr, flush=True)
+        context = _context(box, make(), plat, constraint_tolerance)
+        e0 = _total_energy(context)
+        residuals = []
+        for _ in range(energy_steps):
+            context.getIntegrator().step(1)
+            residuals.append(_total_energy(context) - e0)
+        row.energy_rms = float(np.sqrt(np.mean(np.square(residuals))))
+    return rows
+
+
+def _force_evaluations(context: mm.Context) -> int | None:
+    integrator = context.getIntegrator()
+    if isinstance(integrator, mm.CustomIntegrator):
+        return int(integrator.getGlobalVariableByName("force_evaluations"))
+    return None
+
+
+def format_table(rows: Sequence[BenchmarkRow], header: str = "") -> str:
+    """Format benchmark rows as a plain-text table."""
+    lines = [header] if header else []
+    columns = ("ms/step", 9), ("time ratio", 11), ("force evals/step", 17), ("RMS(H-E0) kJ/mol", 17)
+    lines.append(f"{'integrator':<20} " + " ".join(f"{title:>{width}}" for title, width in columns))
+    for row in rows:
+        lines.append(
+            f"{row.name:<20} {row.ms_per_step:>9.2f} {row.time_ratio:>11.2f} "
+            f"{row.force_evaluations_per_step:>17.2f} {row.energy_rms:>17.4f}"
+        )
+    return "\n".join(lines)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Command-line entry point."""
+    parser = argparse.ArgumentParser(
+        prog="python -m openmm_alphaprk.benchmark",
+        description="Time RATTLE and α-RATTLE against VerletIntegrator on a TIP3P water box (PME).",
+    )
+    parser.add_argument(
+        "--box", type=float, default=3.0, help="cubic box edge in nm (default 3.0: ~2,600 atoms)"
+    )
+    parser.add_argument(
+        "--cutoff", type=float, default=0.9, help="PME direct-space cutoff in nm (default 0.9)"
+    )
+    parser.add_argument("--timestep", type=float, default=2.0, help="step size in fs (default 2)")
+    parser.add_argument("--platform", default="CPU", help="OpenMM platform (default CPU)")
+    parser.add_argument(
+        "--steps", type=int, default=100, help="timed steps per integrator per round (default 100)"
+    )
+    parser.add_argument("--rounds", type=int, default=3, help="interleaved timing rounds (default 3)")
+    parser.add_argument(
+        "--energy-steps", type=int, default=100, help="steps of the energy pass (default 100)"
+    )
+    parser.add_argument(
+        "--equilibration-steps",
+        type=int,
+        default=1000,
+        help="2 fs Langevin steps at 300 K first (default 1000)",
+    )
+    parser.add_argument("--json", help="also write the rows to this JSON file")
+    args = parser.parse_args(argv)
+    if args.box <= 0 or args.timestep <= 0 or args.steps <= 0 or args.rounds <= 0:
+        parser.error("--box, --timestep, --steps and --rounds must be positive")
+    print(f"building a {args.box} nm TIP3P box ...", file=sys.stderr, flush=True)
+    box = build_water_box(
+        args.box, cutoff=args.cutoff, equilibration_steps=args.equilibration_steps, platform=args.platform
+    )
+    timestep = args.timestep / 1000.0
+    rows = run_benchmark(
+        box,
+        default_integrators(timestep),
+        platform=args.platform,
+        steps=args.steps,
+        rounds=args.rounds,
+        energy_steps=args.energy_steps,
+    )
+    header = (
+        f"TIP3P box {args.box} nm, {box.n_atoms} atoms, PME cutoff {args.cutoff} nm, {args.timestep} fs, "
+        f"platform {args.platform}; time ratio against {rows[0].name}; median of {args.rounds} rounds "
+        f"x {args.steps} steps; RMS(H-E0) over {args.energy_steps} steps (VerletIntegrator's kinetic "
+        "energy is its leapfrog estimate)"
+    )
+    print(format_table(rows, header))
+    if args.json:
+        with open(args.json, "w") as handle:
+            json.dump({"header": header, "rows": [asdict(row) for row in rows]}, handle, indent=2)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
