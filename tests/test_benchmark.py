@@ -1,0 +1,19 @@
+"""The cost benchmark runs end to end and reports what it measured."""
+
+import json
+
+from openmm_alphaprk.benchmark import main
+
+
+def test_benchmark_command_prints_and_writes_the_table(tmp_path, capsys):
+    out = tmp_path / "bench.json"
+    args = "--box 1.6 --cutoff 0.7 --steps 3 --rounds 1 --energy-steps 3 --equilibration-steps 20"
+    assert main([*args.split(), "--json", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "AlphaRattle a=1/6" in printed and "time ratio" in printed
+    rows = {row["name"]: row for row in json.loads(out.read_text())["rows"]}
+    assert rows["VerletIntegrator"]["time_ratio"] == 1.0
+    assert rows["RattleIntegrator"]["force_evaluations_per_step"] == 1.0
+    assert rows["AlphaRattle a=0"]["force_evaluations_per_step"] == 1.0
+    assert rows["AlphaRattle a=1/2"]["force_evaluations_per_step"] > 2.0
+    assert all(row["energy_rms"] >= 0 for row in rows.values())
