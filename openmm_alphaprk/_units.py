@@ -36,18 +36,10 @@ def to_float(value: object, unit_: unit.Unit, name: str, *, positive: bool = Fal
                 f"{name} has units of {value.unit}, which cannot be converted to {unit_}; "
                 f"pass a Quantity in units compatible with {unit_} (or a plain number in {unit_})."
             )
-        number = value.value_in_unit(unit_)
-    else:
-        number = value
-    try:
-        number = float(number)
-    except (TypeError, ValueError):
-        raise TypeError(f"{name} must be a number or an openmm.unit.Quantity, got {value!r}.") from None
-    if not math.isfinite(number):
-        raise ValueError(f"{name} must be finite, got {number}.")
-    if positive and number <= 0.0:
-        raise ValueError(f"{name} must be positive, got {number} {unit_.get_symbol()}.")
-    return number
+        value = value.value_in_unit(unit_)
+    return _checked_float(
+        value, name, positive, "a number or an openmm.unit.Quantity", f" {unit_.get_symbol()}"
+    )
 
 
 def to_dimensionless(value: object, name: str, *, positive: bool = False) -> float:
@@ -56,14 +48,19 @@ def to_dimensionless(value: object, name: str, *, positive: bool = False) -> flo
         if not value.unit.is_dimensionless():
             raise TypeError(f"{name} must be dimensionless, got units of {value.unit}.")
         value = value.value_in_unit(unit.dimensionless)
+    return _checked_float(value, name, positive, "a number", "")
+
+
+def _checked_float(value: object, name: str, positive: bool, expected: str, symbol: str) -> float:
+    """Convert a plain value to float; reject booleans, non-numbers, non-finite and (optionally) ≤ 0."""
     if isinstance(value, bool):
-        raise TypeError(f"{name} must be a number, got {value!r}.")
+        raise TypeError(f"{name} must be {expected}, got {value!r}.")
     try:
         number = float(value)
     except (TypeError, ValueError):
-        raise TypeError(f"{name} must be a number, got {value!r}.") from None
+        raise TypeError(f"{name} must be {expected}, got {value!r}.") from None
     if not math.isfinite(number):
         raise ValueError(f"{name} must be finite, got {number}.")
     if positive and number <= 0.0:
-        raise ValueError(f"{name} must be positive, got {number}.")
+        raise ValueError(f"{name} must be positive, got {number}{symbol}.")
     return number
