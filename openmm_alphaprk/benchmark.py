@@ -22,7 +22,7 @@ import numpy as np
 import openmm as mm
 import openmm.unit as unit
 
-from .integrators import AlphaRattleIntegrator, RattleIntegrator
+from .integrators import AlphaRattleIntegrator, RattleIntegrator, _ConstrainedVerletBase
 from .waterbox import WaterBox, build_water_box
 
 
@@ -100,45 +100,51 @@ def run_benchmark(
 
     """
     plat = mm.Platform.getPlatformByName(platform)
-    contexts = {name: _context(box, make(), plat, constraint_tolerance) for name, make in integrators.items()}
-    for context in contexts.values():
-        context.getIntegrator().step(2)  # program analysis and first force evaluations
-    evaluations_before = {name: _force_evaluations(context) for name, context in contexts.items()}
-    times: dict[str, list[float]] = {name: [] for name in contexts}
+    # keep the Python integrator objects: Context.getIntegrator() returns a plain
+    # CustomIntegrator whose step() skips this package's checks
+    runs = {}
+    for name, make in integrators.items():
+        integrator = make()
+        runs[name] = integrator, _context(box, integrator, plat, constraint_tolerance)
+    for integrator, _ in runs.values():
+        integrator.step(2)  # program analysis and first force evaluations
+    evaluations_before = {name: _force_evaluations(integrator) for name, (integrator, _) in runs.items()}
+    times: dict[str, list[float]] = {name: [] for name in runs}
     for round_index in range(rounds):
-        for name, context in contexts.items():
+        for name, (integrator, _) in runs.items():
             if progress:
                 print(f"round {round_index + 1}/{rounds}: {name}", file=sys.stderr, flush=True)
             start = time.perf_counter()
-            context.getIntegrator().step(steps)
+            integrator.step(steps)
             times[name].append((time.perf_counter() - start) / steps * 1e3)
     rows = []
     baseline = statistics.median(times[next(iter(times))])
-    for name, context in contexts.items():
-        evaluations = _force_evaluations(context)
+    for name, (integrator, _) in runs.items():
+        evaluations = _force_evaluations(integrator)
         per_step = (
             (evaluations - evaluations_before[name]) / (steps * rounds) if evaluations is not None else 1.0
         )
         ms = statistics.median(times[name])
         rows.append(BenchmarkRow(name, ms, ms / baseline, per_step, float("nan")))
-    del contexts
-    for row, (name, make) in zip(rows, integrators.items()):
+    del runs
+    for row, make in zip(rows, integrators.values()):
         if progress:
-            print(f"energy pass: {name}", file=sys.stderr, flush=True)
-        context = _context(box, make(), plat, constraint_tolerance)
+            print(f"energy pass: {row.name}", file=sys.stderr, flush=True)
+        integrator = make()
+        context = _context(box, integrator, plat, constraint_tolerance)
         e0 = _total_energy(context)
         residuals = []
         for _ in range(energy_steps):
-            context.getIntegrator().step(1)
+            integrator.step(1)
             residuals.append(_total_energy(context) - e0)
         row.energy_rms = float(np.sqrt(np.mean(np.square(residuals))))
     return rows
 
 
-def _force_evaluations(context: mm.Context) -> int | None:
-    integrator = context.getIntegrator()
-    if isinstance(integrator, mm.CustomIntegrator):
-        return int(integrator.getGlobalVariableByName("force_evaluations"))
+def _force_evaluations(integrator: mm.Integrator) -> int | None:
+    """Force evaluations counted by this package's integrators; None for others (one per step)."""
+    if isinstance(integrator, _ConstrainedVerletBase):
+        return integrator.force_evaluations
     return None
 
 
