@@ -33,6 +33,16 @@ import openmm as mm
 import openmm.unit as unit
 
 from ._units import to_dimensionless, to_float
+from .energy_mode import (
+    DEFAULT_ALPHA_BOUNDS,
+    DEFAULT_ALPHA_PROBE,
+    DEFAULT_ENERGY_MIDPOINT_TOLERANCE,
+    DEFAULT_ENERGY_TOLERANCE,
+    DEFAULT_MAX_ALPHA_CHANGE,
+    DEFAULT_MAX_TRIALS,
+    _EnergyModeProgram,
+    check_alpha_bounds,
+)
 
 #: Name of the global variable that identifies the integrator class in serialized form.
 KIND_VARIABLE = "alphaprk_kind"
@@ -210,7 +220,7 @@ class RattleIntegrator(_ConstrainedVerletBase):
         self._add_end_step()
 
 
-class AlphaRattleIntegrator(_ConstrainedVerletBase):
+class AlphaRattleIntegrator(_EnergyModeProgram, _ConstrainedVerletBase):
     """α-RATTLE: a one-parameter family of symplectic constrained integrators.
 
     The potential is integrated along the straight path x0 → x1 with weights
@@ -219,20 +229,44 @@ class AlphaRattleIntegrator(_ConstrainedVerletBase):
     quadratic invariants (linear and angular momentum), and is of order 2
     (design doc §3).
 
+    With ``alpha="energy"`` α is chosen anew every step so that the total energy
+    after the step equals E_ref, the energy of the starting state (design doc §4;
+    see :mod:`openmm_alphaprk.energy_mode`). Each step is still a member of the
+    family, so constraints and linear momentum are kept exactly and angular momentum
+    to the midpoint tolerance; symplecticity is given up.
+
     Parameters
     ----------
     timestep
         Step size (Quantity, or number in picoseconds).
     alpha
-        The method parameter α (a finite number). α = 0 takes the RATTLE path with
-        one force evaluation per step; α ≠ 0 needs the implicit midpoint force.
+        The method parameter α (a finite number), or ``"energy"`` for the
+        energy-preserving mode. α = 0 takes the RATTLE path with one force
+        evaluation per step; α ≠ 0 needs the implicit midpoint force.
     constraint_tolerance
         Relative constraint tolerance passed to ``setConstraintTolerance``.
     midpoint_tolerance
         The midpoint iteration stops when the RMS change of x1 per degree of freedom
-        falls below this (nm).
+        falls below this (nm). Default 1e-10 nm for fixed α (symplectic to that
+        level), 1e-7 nm in the energy mode (where it only limits how well angular
+        momentum is kept, by ΔL ≈ 2hα δx_m × F per step).
     max_midpoint_iterations
-        Cap on midpoint force evaluations per step.
+        Cap on midpoint force evaluations per step (in the energy mode: on passes of
+        the controller, two force evaluations each).
+    alpha_bounds
+        Energy mode: the interval (low, high) α* is kept in.
+    energy_tolerance
+        Energy mode: target |H − E_ref| after each step (Quantity or kJ/mol). It
+        must sit above the platform's noise in ``energy``: ~1e-3 kJ/mol on the
+        single-precision CPU platform for a few thousand atoms.
+    max_trials
+        Energy mode: passes per step that may change α (two force evaluations each);
+        after them α is frozen and further passes only converge the midpoint.
+    max_alpha_change
+        Energy mode: the largest change of α one secant update may make.
+    alpha_probe
+        Energy mode: the smallest first move of α in a step, so that the step can
+        measure its own slope dH/dα.
 
     Notes
     -----
@@ -245,16 +279,40 @@ class AlphaRattleIntegrator(_ConstrainedVerletBase):
     def __init__(
         self,
         timestep: unit.Quantity | float,
-        alpha: float = 0.0,
+        alpha: float | str = 0.0,
         constraint_tolerance: float = DEFAULT_CONSTRAINT_TOLERANCE,
-        midpoint_tolerance: unit.Quantity | float = DEFAULT_MIDPOINT_TOLERANCE,
+        midpoint_tolerance: unit.Quantity | float | None = None,
         max_midpoint_iterations: int = DEFAULT_MAX_MIDPOINT_ITERATIONS,
+        *,
+        alpha_bounds: tuple[float, float] = DEFAULT_ALPHA_BOUNDS,
+        energy_tolerance: unit.Quantity | float = DEFAULT_ENERGY_TOLERANCE,
+        max_trials: int = DEFAULT_MAX_TRIALS,
+        max_alpha_change: float = DEFAULT_MAX_ALPHA_CHANGE,
+        alpha_probe: float = DEFAULT_ALPHA_PROBE,
     ) -> None:
-        alpha = to_dimensionless(alpha, "alpha")
+        energy_mode = isinstance(alpha, str)
+        if energy_mode and alpha != "energy":
+            raise ValueError(f"alpha must be a number or 'energy', got {alpha!r}.")
+        if energy_mode:
+            low, high = check_alpha_bounds(alpha_bounds)
+            start_alpha = min(max(0.0, low), high)
+            energy_settings = (
+                (low, high),
+                to_float(energy_tolerance, unit.kilojoules_per_mole, "energy_tolerance", positive=True),
+                _positive_int(max_trials, "max_trials"),
+                to_dimensionless(max_alpha_change, "max_alpha_change", positive=True),
+                to_dimensionless(alpha_probe, "alpha_probe", positive=True),
+            )
+            if midpoint_tolerance is None:
+                midpoint_tolerance = DEFAULT_ENERGY_MIDPOINT_TOLERANCE
+        else:
+            start_alpha = to_dimensionless(alpha, "alpha")
+            if midpoint_tolerance is None:
+                midpoint_tolerance = DEFAULT_MIDPOINT_TOLERANCE
         tolerance = to_float(midpoint_tolerance, unit.nanometers, "midpoint_tolerance", positive=True)
         max_iterations = _positive_int(max_midpoint_iterations, "max_midpoint_iterations")
         super().__init__(timestep, constraint_tolerance)
-        self.addGlobalVariable("alpha", alpha)
+        self.addGlobalVariable("alpha", start_alpha)
         self.addGlobalVariable("midpoint_tolerance", tolerance)
         self.addGlobalVariable("max_midpoint_iterations", max_iterations)
         self.addGlobalVariable("midpoint_iterations", 0)
@@ -267,7 +325,11 @@ class AlphaRattleIntegrator(_ConstrainedVerletBase):
         self.addGlobalVariable("sum_change2", 0)
         for name in ("fstart", "fmid", "x1"):
             self.addPerDofVariable(name, 0)
-        self._build_program()
+        if energy_mode:
+            self._add_energy_mode_variables(*energy_settings)
+            self._build_energy_program()
+        else:
+            self._build_program()
 
     _FIRST_FORCES = "(0.5-alpha)*fstart + alpha*fmid"
     _LAST_FORCES = "alpha*fmid + (0.5-alpha)*f"
@@ -342,8 +404,8 @@ class AlphaRattleIntegrator(_ConstrainedVerletBase):
         ------
         MidpointConvergenceError
             If the midpoint iteration did not converge (|α| h²ω²/4 ≳ 1, a tolerance
-            below the platform's precision, or non-finite forces). The context is
-            left at the start of the failed step.
+            below the platform's precision, or non-finite forces or energies). The
+            context is left at the start of the failed step.
         """
         failures = self.getGlobalVariableByName("midpoint_failures")
         super().step(steps)
@@ -352,7 +414,8 @@ class AlphaRattleIntegrator(_ConstrainedVerletBase):
                 f"α-RATTLE midpoint iteration did not converge (last RMS change "
                 f"{self.getGlobalVariableByName('midpoint_change'):.3g} nm after "
                 f"{self.midpoint_iterations} iterations; tolerance {self.midpoint_tolerance}, "
-                f"alpha={self.alpha}, timestep={self.timestep}). The context was left at the start "
+                f"alpha={'energy mode, ' if self.energy_mode else ''}{self.alpha}, "
+                f"timestep={self.timestep}). The context was left at the start "
                 "of the failed step. Reduce the timestep or |alpha|, raise midpoint_tolerance if it "
                 "is below the platform's precision, or check the system for overlapping atoms."
             )
@@ -360,7 +423,11 @@ class AlphaRattleIntegrator(_ConstrainedVerletBase):
     # -------------------------------------------------------------- parameters
     @property
     def alpha(self) -> float:
-        """The method parameter α; may be changed between steps."""
+        """The method parameter α; may be changed between steps.
+
+        In the energy mode: α* of the last step, and setting it sets the α the next
+        step's controller starts from.
+        """
         return self.getGlobalVariableByName("alpha")
 
     @alpha.setter
@@ -399,7 +466,8 @@ class AlphaRattleIntegrator(_ConstrainedVerletBase):
         return self.getGlobalVariableByName("midpoint_change") * unit.nanometers
 
     def __repr__(self) -> str:
-        return f"{type(self).__name__}(timestep={self.timestep}, alpha={self.alpha})"
+        alpha = "'energy'" if self.energy_mode else self.alpha
+        return f"{type(self).__name__}(timestep={self.timestep}, alpha={alpha})"
 
 
 def _positive_int(value: object, name: str) -> int:
