@@ -1,0 +1,185 @@
+"""An OpenMM reporter for the α* controller of the energy-preserving mode."""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import os
+from dataclasses import dataclass
+
+import numpy as np
+import openmm.app as app
+
+from .integrators import AlphaRattleIntegrator, restore_integrator
+
+#: Columns written by :class:`AlphaControllerReporter`, with their units.
+COLUMNS = (
+    "step",
+    "time (ps)",
+    "alpha",
+    "H - E_ref (kJ/mol)",
+    "E_ref (kJ/mol)",
+    "trials",
+    "force evaluations",
+    "fell back",
+    "alpha at bound",
+    "midpoint change (nm)",
+)
+
+
+class AlphaControllerReporter:
+    """Write the α* controller's per-step diagnostics to a CSV file as the run goes.
+
+    Follows the OpenMM reporter protocol (``describeNextReport``/``report``), so it
+    is added to ``Simulation.reporters`` like ``StateDataReporter``. The file is
+    opened on the first report and flushed after every row, so an interrupted run
+    leaves a readable file. With ``reportInterval=1`` (the default) every step is
+    recorded; with a larger interval each row describes the step just taken.
+
+    Parameters
+    ----------
+    file
+        A path, or an open text file.
+    reportInterval
+        Steps between rows.
+    append
+        Append to an existing file instead of overwriting it (for a resumed run);
+        the header is then not written again.
+
+    Raises
+    ------
+    ValueError
+        From ``report``, if the residual is not finite (fail fast on NaN).
+    """
+
+    def __init__(
+        self, file: str | os.PathLike | io.TextIOBase, reportInterval: int = 1, append: bool = False
+    ):
+        if isinstance(reportInterval, bool) or int(reportInterval) != reportInterval or reportInterval < 1:
+            raise ValueError(f"reportInterval must be a positive integer, got {reportInterval!r}.")
+        self._interval = int(reportInterval)
+        self._file_argument = file
+        self._append = append
+        self._out: io.TextIOBase | None = None
+        self._writer = None
+        self._owns_file = False
+        self.rows: list[tuple[float, ...]] = []
+
+    def describeNextReport(self, simulation: app.Simulation) -> dict:
+        """Return the steps until the next report; this reporter needs no state data."""
+        steps = self._interval - simulation.currentStep % self._interval
+        return {"steps": steps, "periodic": None, "include": []}
+
+    def report(self, simulation: app.Simulation, state) -> None:
+        """Append one row for the step just taken."""
+        integrator = restore_integrator(simulation.integrator)
+        if not isinstance(integrator, AlphaRattleIntegrator) or not integrator.energy_mode:
+            raise TypeError(
+                "AlphaControllerReporter needs an AlphaRattleIntegrator in the energy mode "
+                "(alpha='energy'); use openmm.app.StateDataReporter for other integrators."
+            )
+        if self._out is None:
+            self._open()
+        get = integrator.getGlobalVariableByName
+        row = (
+            simulation.currentStep,
+            state.getTime()._value
+            if state is not None
+            else simulation.currentStep * integrator.getStepSize()._value,
+            get("alpha"),
+            get("residual"),
+            get("reference_energy"),
+            int(get("trials")),
+            int(get("step_force_evaluations")),
+            int(get("fell_back")),
+            int(get("alpha_at_bound")),
+            get("midpoint_change"),
+        )
+        self.rows.append(row)
+        self._writer.writerow(row)
+        self._out.flush()
+        if not math.isfinite(row[3]):
+            raise ValueError(
+                f"Energy residual is {row[3]} at step {row[0]}: the simulation has become unstable. "
+                "Reduce the timestep or check the starting structure."
+            )
+
+    def _open(self) -> None:
+        if isinstance(self._file_argument, (str, os.PathLike)):
+            exists = os.path.exists(self._file_argument) and os.path.getsize(self._file_argument) > 0
+            self._out = open(self._file_argument, "a" if self._append else "w", newline="")  # noqa: SIM115
+            self._owns_file = True
+            write_header = not (self._append and exists)
+        else:
+            self._out = self._file_argument
+            write_header = not self._append
+        self._writer = csv.writer(self._out)
+        if write_header:
+            self._writer.writerow(COLUMNS)
+
+    def summary(self, energy_tolerance: float | None = None) -> ControllerSummary:
+        """Summary statistics of the rows recorded by this reporter object."""
+        return summarize_controller(np.array(self.rows, dtype=float), energy_tolerance)
+
+    def __del__(self) -> None:
+        if self._owns_file and self._out is not None:
+            self._out.close()
+
+
+@dataclass(frozen=True)
+class ControllerSummary:
+    """Statistics of the α* controller over a run (kJ/mol for energies)."""
+
+    steps: int
+    alpha_percentiles: dict[str, float]
+    rms_residual: float
+    max_abs_residual: float
+    fraction_within_tolerance: float
+    fraction_fallen_back: float
+    fraction_at_bound: float
+    force_evaluations_per_step: float
+
+    def as_dict(self) -> dict:
+        """Plain-dict form (for JSON)."""
+        return dict(self.__dict__)
+
+
+def read_controller_csv(path: str | os.PathLike) -> np.ndarray:
+    """Read a file written by :class:`AlphaControllerReporter` into an array (rows × columns)."""
+    data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+    if data.shape[1] != len(COLUMNS):
+        raise ValueError(
+            f"{path} has {data.shape[1]} columns, expected {len(COLUMNS)} ({', '.join(COLUMNS)})."
+        )
+    return data
+
+
+def summarize_controller(rows: np.ndarray, energy_tolerance: float | None = None) -> ControllerSummary:
+    """α percentiles, residual statistics and fractions from controller rows.
+
+    Parameters
+    ----------
+    rows
+        Array with the columns of :data:`COLUMNS` (from the reporter, or
+        :func:`read_controller_csv`).
+    energy_tolerance
+        If given (kJ/mol), "within tolerance" is |H − E_ref| ≤ this; otherwise the
+        integrator's own verdict per step (``fell back`` column) is used.
+    """
+    rows = np.asarray(rows, dtype=float)
+    if rows.ndim != 2 or rows.shape[0] == 0:
+        raise ValueError("No controller rows to summarize: run at least one step with the reporter attached.")
+    alpha, residual = rows[:, 2], rows[:, 3]
+    within = np.abs(residual) <= energy_tolerance if energy_tolerance is not None else rows[:, 7] == 0
+    percentiles = (1, 5, 25, 50, 75, 95, 99)
+    return ControllerSummary(
+        steps=int(rows.shape[0]),
+        alpha_percentiles={f"p{p}": float(v) for p, v in zip(percentiles, np.percentile(alpha, percentiles))},
+        rms_residual=float(np.sqrt(np.mean(residual**2))),
+        max_abs_residual=float(np.max(np.abs(residual))),
+        fraction_within_tolerance=float(np.mean(within)),
+        fraction_fallen_back=float(np.mean(rows[:, 7])),
+        fraction_at_bound=float(np.mean(rows[:, 8])),
+        force_evaluations_per_step=float(np.mean(rows[:, 6])),
+    )
