@@ -359,7 +359,11 @@ def test_iteration_cap_and_force_evaluation_counts(water_box):
 
 
 def test_step_programs_are_small_and_start_quickly(water_box):
-    for integrator in (RattleIntegrator(0.002), AlphaRattleIntegrator(0.002, alpha=0.5)):
+    for integrator in (
+        RattleIntegrator(0.002),
+        AlphaRattleIntegrator(0.002, alpha=0.5),
+        AlphaRattleIntegrator(0.002, alpha="energy"),
+    ):
         blocks = sum(
             integrator.getComputationStep(i)[0]
             in (mm.CustomIntegrator.WhileBlockStart, mm.CustomIntegrator.IfBlockStart)
