@@ -1,0 +1,142 @@
+"""Integrators by name, for the driver and the command line.
+
+Names:
+
+``rattle``
+    :class:`~openmm_alphaprk.RattleIntegrator` (velocity Verlet with SHAKE/SETTLE and
+    RATTLE velocities; one force evaluation per step).
+``alpha=<number>``
+    :class:`~openmm_alphaprk.AlphaRattleIntegrator` with that fixed α; fractions
+    are accepted (``alpha=1/6``). ``alpha=0`` is RATTLE.
+``energy``
+    :class:`~openmm_alphaprk.AlphaRattleIntegrator` in the energy-preserving mode
+    (``alpha="energy"``: α chosen every step so that H stays at E_ref).
+``verlet``
+    ``openmm.VerletIntegrator`` (leapfrog). Its ``State`` kinetic energy is a
+    half-step average, so its H − E_ref is not comparable step for step with the
+    velocity-Verlet integrators above (its fluctuation looks different for that
+    reason alone); its drift is comparable.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from fractions import Fraction
+
+import openmm as mm
+import openmm.unit as unit
+
+from .integrators import AlphaRattleIntegrator, RattleIntegrator
+
+INTEGRATOR_NAMES = ("rattle", "alpha=<number>", "energy", "verlet")
+
+#: One line per name, for ``--help``.
+INTEGRATOR_HELP = (
+    "rattle = RattleIntegrator (velocity Verlet + SHAKE/SETTLE/RATTLE, 1 force evaluation/step); "
+    "alpha=<number> = AlphaRattleIntegrator with fixed alpha, fractions allowed (alpha=1/6; alpha=0 is "
+    "RATTLE); energy = AlphaRattleIntegrator(alpha='energy'), alpha chosen per step to hold H at E_ref "
+    "(~7 force evaluations/step); verlet = openmm.VerletIntegrator (leapfrog: its reported kinetic "
+    "energy is a half-step estimate, so its H - E_ref is not comparable step for step)"
+)
+
+
+class UnknownIntegratorError(ValueError):
+    """Raised for an integrator name that is not one of :data:`INTEGRATOR_NAMES`."""
+
+
+class IncompatibleSystemError(ValueError):
+    """Raised when an integrator cannot integrate a system (virtual sites with a CustomIntegrator)."""
+
+
+@dataclass(frozen=True)
+class IntegratorSpec:
+    """A parsed integrator name: ``kind`` is rattle, alpha, energy or verlet."""
+
+    kind: str
+    alpha: float | None = None
+    text: str = ""
+
+    @property
+    def name(self) -> str:
+        """Canonical name (``alpha=0.1666…`` keeps the user's fraction text)."""
+        return self.text or self.kind
+
+    @property
+    def needs_massive_particles(self) -> bool:
+        """True for this package's CustomIntegrators, which refuse virtual sites."""
+        return self.kind != "verlet"
+
+    @property
+    def velocity_verlet(self) -> bool:
+        """True if the State's kinetic energy is that of on-step velocities."""
+        return self.kind != "verlet"
+
+
+def parse_integrator(text: str | IntegratorSpec) -> IntegratorSpec:
+    """Parse ``rattle``, ``verlet``, ``energy`` or ``alpha=<number>`` (case-insensitive).
+
+    Raises
+    ------
+    UnknownIntegratorError
+        With the list of valid names.
+    """
+    if isinstance(text, IntegratorSpec):
+        return text
+    cleaned = re.sub(r"\s+", "", str(text)).lower()
+    if cleaned in ("rattle", "verlet", "energy"):
+        return IntegratorSpec(cleaned, text=cleaned)
+    match = re.fullmatch(r"alpha=([-+0-9.e/]+)", cleaned)
+    if match:
+        try:
+            value = float(Fraction(match.group(1)))
+        except (ValueError, ZeroDivisionError):
+            value = None
+        if value is not None and value == value and abs(value) != float("inf"):
+            return IntegratorSpec("alpha", value, text=cleaned)
+    raise UnknownIntegratorError(
+        f"unknown integrator {text!r}; use one of: rattle, verlet, energy, alpha=<number> "
+        "(e.g. alpha=0.5 or alpha=1/6)."
+    )
+
+
+def make_integrator(
+    spec: str | IntegratorSpec, timestep: unit.Quantity | float, constraint_tolerance: float = 1e-8
+) -> mm.Integrator:
+    """Create the integrator named by ``spec`` (timestep: Quantity or ps)."""
+    spec = parse_integrator(spec)
+    if spec.kind == "rattle":
+        return RattleIntegrator(timestep, constraint_tolerance)
+    if spec.kind == "alpha":
+        return AlphaRattleIntegrator(timestep, alpha=spec.alpha, constraint_tolerance=constraint_tolerance)
+    if spec.kind == "energy":
+        return AlphaRattleIntegrator(timestep, alpha="energy", constraint_tolerance=constraint_tolerance)
+    integrator = mm.VerletIntegrator(timestep)
+    integrator.setConstraintTolerance(constraint_tolerance)
+    return integrator
+
+
+def check_compatible(spec: str | IntegratorSpec, system: mm.System, system_name: str = "this system") -> None:
+    """Refuse, before any step, an integrator that cannot integrate ``system``.
+
+    Raises
+    ------
+    IncompatibleSystemError
+        If ``system`` has massless particles (virtual sites) and ``spec`` is one of
+        this package's CustomIntegrators.
+    """
+    spec = parse_integrator(spec)
+    if not spec.needs_massive_particles:
+        return
+    massless = sum(
+        system.getParticleMass(i).value_in_unit(unit.dalton) == 0 or system.isVirtualSite(i)
+        for i in range(system.getNumParticles())
+    )
+    if massless:
+        raise IncompatibleSystemError(
+            f"integrator {spec.name!r} cannot run {system_name}: it has {massless} massless particle(s) "
+            "(virtual sites, e.g. TIP4P-Ew M-sites). OpenMM places virtual sites only at the end of a "
+            "CustomIntegrator step on the Reference and CPU platforms, so RATTLE and alpha-RATTLE would "
+            "use wrong forces. Use --integrator verlet for this system, or a 3-site water model "
+            "(tip3p-*, spce-3nm)."
+        )

@@ -1,0 +1,138 @@
+"""The files of a run directory, and what resuming a run needs of them.
+
+A run directory holds::
+
+    run.json         parameters of the run (what makes it "the same run")
+    system.xml       the System (XmlSerializer), topology.pdb the start structure
+    energies.csv     StateDataReporter rows: step, time, potential, kinetic, total energy, temperature
+    controller.csv   energy mode only: AlphaControllerReporter rows, every step
+    trajectory.dcd   DCDReporter frames (unwrapped coordinates) every trajectory_interval steps
+    checkpoint.chk   the last checkpoint (OpenMM binary, platform-specific)
+    summary.json     written when the run is complete
+
+On resume every file is cut back to the checkpoint's step, so rows and frames written
+after the last checkpoint by an interrupted run are not duplicated.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import struct
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+RUN_FORMAT = "openmm_alphaprk.run/1"
+PARAMETERS_FILE = "run.json"
+ENERGIES_FILE = "energies.csv"
+CONTROLLER_FILE = "controller.csv"
+TRAJECTORY_FILE = "trajectory.dcd"
+CHECKPOINT_FILE = "checkpoint.chk"
+SUMMARY_FILE = "summary.json"
+SYSTEM_FILE = "system.xml"
+TOPOLOGY_FILE = "topology.pdb"
+
+#: Parameters that may differ between invocations on the same directory.
+_MAY_DIFFER = ("steps",)
+
+
+class RunDirectoryError(ValueError):
+    """Raised when an output directory holds something other than this run."""
+
+
+def check_run_directory(path: Path, parameters: dict[str, Any]) -> dict[str, Any] | None:
+    """Return the stored parameters if ``path`` holds this run, None if it is new or empty.
+
+    Raises
+    ------
+    RunDirectoryError
+        If ``path`` is a file, holds files but no ``run.json``, or holds a run with
+        different parameters (the message names them).
+    """
+    if path.exists() and not path.is_dir():
+        raise RunDirectoryError(f"output {path} is a file; give a directory.")
+    if not path.exists() or not any(path.iterdir()):
+        return None
+    stored_file = path / PARAMETERS_FILE
+    if not stored_file.is_file():
+        raise RunDirectoryError(
+            f"output directory {path} is not empty and holds no {PARAMETERS_FILE}: it is not a run "
+            "directory. Choose a new or empty directory."
+        )
+    stored = json.loads(stored_file.read_text())
+    differences = [
+        f"{key}: stored {stored.get(key)!r}, requested {value!r}"
+        for key, value in parameters.items()
+        if key not in _MAY_DIFFER and stored.get(key) != value
+    ]
+    if differences:
+        raise RunDirectoryError(
+            f"output directory {path} holds a different run ({'; '.join(differences)}). Choose another "
+            "output directory, or repeat the stored settings to resume or extend that run."
+        )
+    return stored
+
+
+def write_parameters(path: Path, parameters: dict[str, Any]) -> None:
+    (path / PARAMETERS_FILE).write_text(json.dumps(parameters, indent=2) + "\n")
+
+
+def read_energies(path: str | os.PathLike) -> np.ndarray:
+    """Rows of ``energies.csv``: step, time (ps), potential, kinetic, total (kJ/mol), temperature (K)."""
+    data = np.loadtxt(path, delimiter=",", comments="#", ndmin=2)
+    if data.shape[0] == 0:
+        raise ValueError(f"{path} holds no energy rows.")
+    return data
+
+
+def truncate_csv(path: Path, last_step: int) -> None:
+    """Keep the header and the complete rows whose first column (step) is ≤ ``last_step``."""
+    if not path.is_file():
+        return
+    kept = []
+    for line in path.read_text().splitlines(keepends=True):
+        if line.startswith(("#", "step")):
+            kept.append(line)
+            continue
+        if not line.endswith("\n"):
+            break  # a row cut off by the interruption
+        try:
+            step = float(line.split(",")[0])
+        except ValueError:
+            break
+        if step > last_step:
+            break
+        kept.append(line)
+    path.write_text("".join(kept))
+
+
+def truncate_dcd(path: Path, n_frames: int) -> int:
+    """Cut an OpenMM-written DCD file to its first ``n_frames`` frames; return the frames kept.
+
+    Updates the frame count and last step in the header, so that ``DCDReporter(append=True)``
+    continues from there.
+    """
+    if not path.is_file():
+        return 0
+    with open(path, "r+b") as handle:
+        header = handle.read(276)
+        if len(header) < 100 or header[4:8] != b"CORD":
+            raise RunDirectoryError(f"{path} is not a DCD file written by OpenMM; move it away to resume.")
+        count, first_step, interval = struct.unpack("<3i", header[8:20])
+        has_box = struct.unpack("<i", header[48:52])[0]
+        comments = struct.unpack("<i", header[92:96])[0]
+        handle.seek(104 + comments)
+        n_atoms = struct.unpack("<i", handle.read(4))[0]
+        header_size = 104 + comments + 8
+        frame_size = 56 * bool(has_box) + 3 * (8 + 4 * n_atoms)
+        size = handle.seek(0, os.SEEK_END)
+        complete = (size - header_size) // frame_size
+        keep = max(0, min(n_frames, complete, count))
+        handle.truncate(header_size + keep * frame_size)
+        handle.seek(8)
+        handle.write(struct.pack("<i", keep))
+        handle.seek(20)
+        handle.write(struct.pack("<i", first_step + max(keep - 1, 0) * interval))
+    return keep
