@@ -1,0 +1,211 @@
+"""Several integrators from the same equilibrated start, side by side: table, JSON and figure."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import openmm.unit as unit
+
+from . import rundir
+from ._units import to_float
+from .driver import RunSummary, run_nve, run_parameters
+from .integrator_specs import IntegratorSpec, check_compatible, parse_integrator
+from .systems import PreparedSystem, load_definition, prepare_system
+
+DEFAULT_SYSTEM = "tip3p-3nm"
+DEFAULT_INTEGRATORS = ("rattle", "energy", "alpha=1/6", "verlet")
+COMPARISON_FILE = "comparison.json"
+FIGURE_FILE = "energy_residuals.png"
+
+VERLET_NOTE = (
+    "verlet = openmm.VerletIntegrator (leapfrog): its State kinetic energy is a half-step estimate, so "
+    "its H - E_ref is not comparable step for step with the velocity-Verlet integrators; compare drift."
+)
+
+
+@dataclass
+class Comparison:
+    """The runs of a comparison, its printed table and the files written."""
+
+    system: str
+    summaries: list[RunSummary]
+    table: str
+    output: Path
+    figure: Path | None
+
+
+def compare(
+    system: str | PreparedSystem = DEFAULT_SYSTEM,
+    integrators: Sequence[str | IntegratorSpec] = DEFAULT_INTEGRATORS,
+    output: str | os.PathLike = "alphaprk-compare",
+    *,
+    steps: int = 1000,
+    timestep: unit.Quantity | float = 0.002,
+    platform: str = "CPU",
+    precision: str | None = None,
+    constraint_tolerance: float = 1e-8,
+    energy_interval: int = 10,
+    trajectory_interval: int = 100,
+    checkpoint_interval: int = 500,
+    cache_dir: str | os.PathLike | None = None,
+    plot: bool = True,
+    progress: bool = True,
+) -> Comparison:
+    """Run every integrator from the same start state and compare energy conservation and cost.
+
+    Each integrator gets its own run directory ``output/<integrator>`` (see
+    :func:`~openmm_alphaprk.driver.run_nve`; an interrupted comparison resumes where it
+    stopped). Writes ``comparison.json``, the table, and ``energy_residuals.png``
+    (H − E_ref against time for all integrators).
+
+    Parameters
+    ----------
+    system
+        System name (``alphaprk systems``), path of a ``.toml`` definition, or a
+        :class:`~openmm_alphaprk.systems.PreparedSystem`.
+    integrators
+        Integrator names (``rattle``, ``verlet``, ``energy``, ``alpha=<number>``).
+    output
+        Folder of the comparison.
+    steps
+        Steps per integrator.
+    timestep
+        Step size (Quantity, or number in ps).
+    platform, precision
+        OpenMM platform and its precision, as for :func:`~openmm_alphaprk.driver.run_nve`.
+    constraint_tolerance
+        Relative constraint tolerance of every integrator.
+    energy_interval, trajectory_interval, checkpoint_interval
+        Steps between energy rows, DCD frames and checkpoints.
+    cache_dir
+        Cache of equilibrated systems.
+    progress
+        Show progress bars.
+    plot
+        Write the figure (needs matplotlib).
+
+    Raises
+    ------
+    UnknownSystemError, UnknownIntegratorError, IncompatibleSystemError, RunDirectoryError
+        Before any run starts.
+    """
+    specs = [parse_integrator(name) for name in integrators]
+    if not specs:
+        raise ValueError("give at least one integrator to compare.")
+    names = [spec.name for spec in specs]
+    if len(set(names)) != len(names):
+        raise ValueError(f"integrators are repeated: {names}; give each once.")
+    timestep_ps = to_float(timestep, unit.picoseconds, "timestep", positive=True)
+    if not isinstance(system, PreparedSystem):
+        load_definition(system)  # an unknown name fails before anything else
+    output = Path(output)
+    if output.exists() and any(output.iterdir()) and not (output / COMPARISON_FILE).is_file():
+        raise rundir.RunDirectoryError(
+            f"output directory {output} is not empty and holds no {COMPARISON_FILE}: it is not a comparison "
+            "directory. Choose a new or empty directory."
+        )
+    if plot:
+        from .plots import pyplot
+
+        pyplot()  # fail now, not after the runs, if matplotlib is missing
+    prepared = (
+        system
+        if isinstance(system, PreparedSystem)
+        else prepare_system(system, cache_dir=cache_dir, progress=progress)
+    )
+    for spec in specs:
+        check_compatible(spec, prepared.system, repr(prepared.name))
+    kwargs = dict(
+        steps=steps,
+        timestep=timestep_ps,
+        platform=platform,
+        precision=precision,
+        constraint_tolerance=constraint_tolerance,
+        energy_interval=energy_interval,
+        trajectory_interval=trajectory_interval,
+        checkpoint_interval=checkpoint_interval,
+        progress=progress,
+    )
+    directories = {spec.name: output / run_directory_name(spec) for spec in specs}
+    for spec in specs:  # refuse a directory holding different runs before running anything
+        parameters = run_parameters(
+            prepared,
+            spec,
+            **{k: v for k, v in kwargs.items() if k not in ("progress", "timestep")},
+            timestep_ps=timestep_ps,
+        )
+        rundir.check_run_directory(directories[spec.name], parameters)
+    output.mkdir(parents=True, exist_ok=True)
+    summaries = [run_nve(prepared, spec, directories[spec.name], **kwargs) for spec in specs]
+    header = (
+        f"{prepared.name}: {prepared.n_atoms} atoms, {summaries[0].degrees_of_freedom} DOF, "
+        f"{timestep_ps * 1000:g} fs, {steps} steps ({steps * timestep_ps:g} ps) NVE from the same start, "
+        f"platform {summaries[0].platform}; H - E_ref sampled every {energy_interval} steps"
+    )
+    table = format_table(summaries, header, any(spec.kind == "verlet" for spec in specs))
+    figure = None
+    if plot:
+        from .plots import plot_energy_residuals
+
+        traces = {}
+        for spec in specs:
+            energies = rundir.read_energies(directories[spec.name] / rundir.ENERGIES_FILE)
+            traces[spec.name] = energies[:, 1], energies[:, 4] - energies[0, 4]
+        figure = Path(plot_energy_residuals(traces, output / FIGURE_FILE, header))
+    (output / COMPARISON_FILE).write_text(
+        json.dumps(
+            {
+                "system": prepared.name,
+                "header": header,
+                "runs": {spec.name: str(directories[spec.name]) for spec in specs},
+                "summaries": [summary.as_dict() for summary in summaries],
+                "figure": str(figure) if figure else None,
+            },
+            indent=2,
+        )
+        + "\n"
+    )
+    (output / "table.txt").write_text(table + "\n")
+    return Comparison(prepared.name, summaries, table, output, figure)
+
+
+def run_directory_name(spec: IntegratorSpec) -> str:
+    """Return a folder name for an integrator (``alpha=1/6`` → ``alpha=1_6``)."""
+    return re.sub(r"[^A-Za-z0-9.=+-]", "_", spec.name)
+
+
+def format_table(summaries: Sequence[RunSummary], header: str = "", verlet_note: bool = True) -> str:
+    """Format the comparison table as plain text (units in the column titles)."""
+    lines = [header] if header else []
+    lines.append(
+        f"{'integrator':<12} {'steps':>6} {'drift/DOF':>12} {'RMS|H-Eref|':>12} {'max|H-Eref|':>12} "
+        f"{'constraint':>11} {'evals/step':>10} {'ns/day':>8}"
+    )
+    lines.append(
+        f"{'':<12} {'':>6} {'kJ/mol/ns':>12} {'kJ/mol':>12} {'kJ/mol':>12} {'rel. error':>11} "
+        f"{'':>10} {'':>8}"
+    )
+    for s in summaries:
+        lines.append(
+            f"{s.integrator:<12} {s.steps:>6} {s.drift_per_dof:>12.3e} {s.rms_residual:>12.4f} "
+            f"{s.max_abs_residual:>12.4f} {s.max_relative_constraint_error:>11.1e} "
+            f"{s.force_evaluations_per_step:>10.2f} {s.ns_per_day:>8.2f}"
+        )
+    for s in summaries:
+        if s.controller:
+            c = s.controller
+            lines.append(
+                f"{s.integrator}: per-step |H-Eref| RMS {c['rms_residual']:.4f} kJ/mol "
+                f"over {c['steps']} steps, "
+                f"alpha* median {c['alpha_percentiles']['p50']:.2f} (p5 {c['alpha_percentiles']['p5']:.2f}, "
+                f"p95 {c['alpha_percentiles']['p95']:.2f}), fell back {c['fraction_fallen_back']:.0%}, "
+                f"at bound {c['fraction_at_bound']:.0%}"
+            )
+    if verlet_note:
+        lines.append(VERLET_NOTE)
+    return "\n".join(lines)
