@@ -25,7 +25,8 @@ from tqdm import tqdm
 
 from . import rundir
 from ._units import to_dimensionless, to_float
-from .energy_benchmark import degrees_of_freedom, drift_per_dof
+from .analysis.energy import EnergyDrift, energy_drift
+from .energy_benchmark import degrees_of_freedom
 from .integrator_specs import IntegratorSpec, check_compatible, make_integrator, parse_integrator
 from .integrators import _ConstrainedVerletBase
 from .reporters import AlphaControllerReporter, read_controller_csv, summarize_controller
@@ -325,10 +326,11 @@ def summarize(
 ) -> RunSummary:
     """Summary statistics from the files of the run and the final state of its context."""
     energies = rundir.read_energies(output / rundir.ENERGIES_FILE)
-    times, total = energies[:, 1], energies[:, 4]
-    e_ref = total[0]
-    residual = total - e_ref
     dof = degrees_of_freedom(prepared.system)
+    if len(energies) >= 2:
+        drift = energy_drift(energies[:, 1], energies[:, 4], dof)
+    else:  # fewer steps than energy_interval: only the start row
+        drift = EnergyDrift(energies[0, 4], 1, 0.0, *(float("nan"),) * 4)
     timestep_ps = integrator.getStepSize().value_in_unit(unit.picoseconds)
     state = simulation.context.getState(getPositions=True, getVelocities=True)
     position_error, velocity_error = constraint_errors(
@@ -336,7 +338,6 @@ def summarize(
         state.getPositions(asNumpy=True).value_in_unit(unit.nanometers),
         state.getVelocities(asNumpy=True).value_in_unit(unit.nanometers / unit.picoseconds),
     )
-    after = residual[1:] if len(residual) > 1 else residual
     notes = []
     if not spec.velocity_verlet:
         notes.append(
@@ -360,11 +361,11 @@ def summarize(
         steps=simulation.currentStep,
         simulated_ps=simulation.currentStep * timestep_ps,
         platform=simulation.context.getPlatform().getName(),
-        e_ref=float(e_ref),
-        drift_per_dof=drift_per_dof(times, residual, dof) if len(times) > 1 else float("nan"),
-        rms_residual=float(np.sqrt(np.mean(after**2))),
-        max_abs_residual=float(np.max(np.abs(after))),
-        energy_samples=int(len(after)),
+        e_ref=drift.e_ref,
+        drift_per_dof=drift.drift_per_dof,
+        rms_residual=drift.rms_residual,
+        max_abs_residual=drift.max_abs_residual,
+        energy_samples=drift.samples - 1,
         max_relative_constraint_error=position_error,
         max_constraint_velocity_error=velocity_error,
         ns_per_day=simulated_ns / (wall_seconds / 86400.0) if wall_seconds > 0 else float("nan"),
