@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import textwrap
 from collections.abc import Mapping
 
 import numpy as np
@@ -34,7 +35,7 @@ def plot_energy_residuals(
     ax.axhline(0.0, color="k", lw=0.5)
     ax.set_xlabel("time (ps)")
     ax.set_ylabel("H − E_ref (kJ/mol)")
-    ax.set_title(title, fontsize=9)
+    ax.set_title(textwrap.fill(title, 110), fontsize=8)
     ax.legend(fontsize=8)
     fig.savefig(path, dpi=120)
     plt.close(fig)

@@ -78,7 +78,8 @@ def test_equilibrated_state_is_consistent(cache):
 def test_cluster_is_isolated_and_at_rest(cache):
     prepared = quick_system("water-cluster", cache)
     assert not prepared.system.usesPeriodicBoundaryConditions()
-    m = np.array([prepared.system.getParticleMass(i).value_in_unit(unit.dalton) for i in range(prepared.n_atoms)])
+    system = prepared.system
+    m = np.array([system.getParticleMass(i).value_in_unit(unit.dalton) for i in range(prepared.n_atoms)])
     x, v = prepared.positions, prepared.velocities
     centre = (m[:, None] * x).sum(0) / m.sum()
     momentum = (m[:, None] * v).sum(0)

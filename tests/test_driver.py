@@ -1,0 +1,149 @@
+"""run_nve and compare: α = 0 is RATTLE, resume = uninterrupted, run directories, errors."""
+
+from __future__ import annotations
+
+import json
+
+import MDAnalysis as mda
+import numpy as np
+import openmm.unit as unit
+import pytest
+from quick_systems import StopAt, quick_system
+
+from openmm_alphaprk import rundir
+from openmm_alphaprk.compare import compare
+from openmm_alphaprk.driver import RunFailedError, run_nve
+from openmm_alphaprk.integrator_specs import UnknownIntegratorError, parse_integrator
+from openmm_alphaprk.rundir import RunDirectoryError
+from openmm_alphaprk.systems import UnknownSystemError
+
+REFERENCE_RUN = dict(
+    platform="Reference", energy_interval=2, trajectory_interval=4, checkpoint_interval=10, progress=False
+)
+
+
+@pytest.fixture(scope="module")
+def cache(tmp_path_factory):
+    return tmp_path_factory.mktemp("cache")
+
+
+@pytest.fixture(scope="module")
+def box(cache):
+    """tip3p-2nm (774 atoms), briefly equilibrated; the runs use the Reference platform."""
+    return quick_system("tip3p-2nm", cache)
+
+
+@pytest.fixture(scope="module")
+def cluster(cache):
+    """The vacuum water cluster (222 atoms, no cutoff): cheap on the Reference platform."""
+    return quick_system("water-cluster", cache)
+
+
+def test_integrator_names():
+    assert parse_integrator("alpha=1/6").alpha == pytest.approx(1 / 6)
+    assert parse_integrator(" Alpha = 0.5 ").alpha == 0.5
+    assert parse_integrator("RATTLE").kind == "rattle"
+    for bad in ("alpha=", "alpha=x", "alpha=1/0", "leapfrog", "alpha=nan"):
+        with pytest.raises(UnknownIntegratorError, match="rattle, verlet, energy, alpha=<number>"):
+            parse_integrator(bad)
+
+
+def test_alpha_zero_gives_rattle_energies(box, tmp_path):
+    rattle = run_nve(box, "rattle", tmp_path / "rattle", steps=20, **REFERENCE_RUN)
+    alpha0 = run_nve(box, "alpha=0", tmp_path / "alpha0", steps=20, **REFERENCE_RUN)
+    a = rundir.read_energies(tmp_path / "rattle" / rundir.ENERGIES_FILE)
+    b = rundir.read_energies(tmp_path / "alpha0" / rundir.ENERGIES_FILE)
+    assert a.shape == b.shape == (11, 6)
+    np.testing.assert_allclose(b[:, 2:5], a[:, 2:5], rtol=0, atol=1e-9)
+    assert np.ptp(a[:, 4]) > 1e-3  # the energies do move: the comparison is not of constants
+    assert alpha0.rms_residual == pytest.approx(rattle.rms_residual, abs=1e-9)
+
+
+@pytest.mark.parametrize("system, integrator", [("box", "rattle"), ("cluster", "energy")])
+def test_interrupted_run_resumes_to_the_uninterrupted_result(request, tmp_path, system, integrator):
+    """On the Reference platform (deterministic); the energy mode keeps E_ref over the restart."""
+    prepared = request.getfixturevalue(system)
+    whole, parts = tmp_path / "whole", tmp_path / "parts"
+    run_nve(prepared, integrator, whole, steps=30, **REFERENCE_RUN)
+    with pytest.raises(KeyboardInterrupt):
+        run_nve(prepared, integrator, parts, steps=30, extra_reporters=[StopAt(17)], **REFERENCE_RUN)
+    assert not (parts / rundir.SUMMARY_FILE).exists()
+    # what the interrupted run left is readable, and goes past its last checkpoint (step 10)
+    assert rundir.read_energies(parts / rundir.ENERGIES_FILE)[-1, 0] == 16
+    assert len(mda.Universe(str(parts / "topology.pdb"), str(parts / "trajectory.dcd")).trajectory) == 4
+    summary = run_nve(prepared, integrator, parts, steps=30, **REFERENCE_RUN)
+    assert summary.steps == 30 and summary.steps_this_call == 20
+    for name in (rundir.ENERGIES_FILE, rundir.CONTROLLER_FILE):
+        if (whole / name).exists():
+            assert (parts / name).read_text() == (whole / name).read_text()
+    u_whole = mda.Universe(str(whole / "topology.pdb"), str(whole / "trajectory.dcd"))
+    u_parts = mda.Universe(str(parts / "topology.pdb"), str(parts / "trajectory.dcd"))
+    assert len(u_parts.trajectory) == len(u_whole.trajectory) == 7
+    np.testing.assert_array_equal(u_parts.trajectory.timeseries(), u_whole.trajectory.timeseries())
+    final = json.loads((whole / rundir.SUMMARY_FILE).read_text())
+    assert summary.e_ref == final["e_ref"] and summary.rms_residual == final["rms_residual"]
+    assert summary.force_evaluations_per_step == final["force_evaluations_per_step"]
+
+
+def test_finished_run_is_reported_and_can_be_extended(box, tmp_path):
+    first = run_nve(box, "rattle", tmp_path, steps=10, **REFERENCE_RUN)
+    again = run_nve(box, "rattle", tmp_path, steps=10, **REFERENCE_RUN)
+    assert again == first
+    longer = run_nve(box, "rattle", tmp_path, steps=20, **REFERENCE_RUN)
+    assert longer.steps == 20 and longer.steps_this_call == 10
+    assert rundir.read_energies(tmp_path / rundir.ENERGIES_FILE)[:, 0].tolist() == list(range(0, 21, 2))
+
+
+def test_directory_with_a_different_run_is_refused(box, tmp_path):
+    run_nve(box, "rattle", tmp_path, steps=4, **REFERENCE_RUN)
+    before = (tmp_path / rundir.ENERGIES_FILE).read_text()
+    with pytest.raises(RunDirectoryError, match=r"different run \(integrator: stored 'rattle', requested"):
+        run_nve(box, "energy", tmp_path, steps=4, **REFERENCE_RUN)
+    with pytest.raises(RunDirectoryError, match="timestep_ps"):
+        run_nve(box, "rattle", tmp_path, steps=4, **{**REFERENCE_RUN}, timestep=0.001)
+    assert (tmp_path / rundir.ENERGIES_FILE).read_text() == before
+    (tmp_path / "other").mkdir()
+    (tmp_path / "other" / "notes.txt").write_text("mine")
+    with pytest.raises(RunDirectoryError, match="not a run directory"):
+        run_nve(box, "rattle", tmp_path / "other", steps=4, **REFERENCE_RUN)
+
+
+def test_bad_input_is_refused_before_work(box, tmp_path):
+    out = tmp_path / "run"
+    with pytest.raises(TypeError, match="cannot be converted to picosecond"):
+        run_nve(box, "rattle", out, timestep=2 * unit.nanometers)
+    with pytest.raises(ValueError, match="timestep must be positive"):
+        run_nve(box, "rattle", out, timestep=-0.002)
+    with pytest.raises(ValueError, match="steps must be a positive integer"):
+        run_nve(box, "rattle", out, steps=0)
+    with pytest.raises(ValueError, match="finite"):
+        run_nve(box, "rattle", out, timestep=float("nan"))
+    with pytest.raises(ValueError, match="no precision setting"):
+        run_nve(box, "rattle", out, precision="double")
+    with pytest.raises(ValueError, match="unknown OpenMM platform 'GPU'"):
+        run_nve(box, "rattle", out, platform="GPU")
+    with pytest.raises(UnknownSystemError, match="unknown system 'tip9p'"):
+        run_nve("tip9p", "rattle", out)
+    assert not out.exists()
+    # a Quantity in other units is converted
+    summary = run_nve(box, "rattle", out, steps=2, timestep=1 * unit.femtoseconds, **REFERENCE_RUN)
+    assert summary.timestep_fs == pytest.approx(1.0)
+
+
+def test_blow_up_stops_with_a_clear_error_and_keeps_the_output(box, tmp_path):
+    with pytest.raises(RunFailedError, match="output up to then is kept"):
+        run_nve(box, "verlet", tmp_path, steps=200, timestep=0.05, energy_interval=1, progress=False)
+    assert rundir.read_energies(tmp_path / rundir.ENERGIES_FILE).shape[0] >= 1
+
+
+def test_compare_table_figure_and_json(box, tmp_path):
+    result = compare(
+        box, ["rattle", "alpha=1/6", "verlet"], tmp_path, steps=6, energy_interval=2, progress=False
+    )
+    assert [s.integrator for s in result.summaries] == ["rattle", "alpha=1/6", "verlet"]
+    assert "drift/DOF" in result.table and "kJ/mol/ns" in result.table and "leapfrog" in result.table
+    assert result.figure.is_file() and result.figure.stat().st_size > 1000
+    data = json.loads((tmp_path / "comparison.json").read_text())
+    assert len(data["summaries"]) == 3 and (tmp_path / "alpha=1_6" / "summary.json").is_file()
+    with pytest.raises(ValueError, match="repeated"):
+        compare(box, ["rattle", "RATTLE"], tmp_path / "x", steps=2, progress=False)
