@@ -116,7 +116,12 @@ def compare(
     prepared = (
         system
         if isinstance(system, PreparedSystem)
-        else prepare_system(system, cache_dir=cache_dir, progress=progress)
+        else prepare_system(
+            system,
+            cache_dir=cache_dir,
+            progress=progress,
+            check=lambda built: [check_compatible(spec, built, repr(str(system))) for spec in specs],
+        )
     )
     for spec in specs:
         check_compatible(spec, prepared.system, repr(prepared.name))

@@ -189,8 +189,12 @@ def run_nve(
     if prepared is not None:
         check_compatible(spec, prepared.system, repr(prepared.name))
     else:
-        prepared = prepare_system(system, cache_dir=cache_dir, progress=progress)
-        check_compatible(spec, prepared.system, repr(prepared.name))
+        prepared = prepare_system(
+            system,
+            cache_dir=cache_dir,
+            progress=progress,
+            check=lambda built: check_compatible(spec, built, repr(str(system))),
+        )
     parameters = run_parameters(
         prepared,
         spec,

@@ -7,6 +7,7 @@ import os
 import shutil
 import tempfile
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -102,6 +103,7 @@ def prepare_system(
     overrides: dict | None = None,
     use_cache: bool = True,
     progress: bool = False,
+    check: Callable[[mm.System], None] | None = None,
 ) -> PreparedSystem:
     """Return the equilibrated system ``name``, from the cache or built (and cached) now.
 
@@ -119,6 +121,9 @@ def prepare_system(
         If false, build without reading or writing the cache.
     progress
         Show a progress bar while equilibrating.
+    check
+        Called with the System before the (slow) equilibration, e.g. to refuse an
+        integrator that cannot run it before any time is spent.
 
     Raises
     ------
@@ -130,9 +135,14 @@ def prepare_system(
     key = system_key(definition)
     path = cache_path(definition, cache_dir)
     if use_cache and (path / "state.xml").is_file():
-        return _read(path, definition, key)
+        prepared = _read(path, definition, key)
+        if check is not None:
+            check(prepared.system)
+        return prepared
     topology, positions, forcefield = build_model(definition)
     system = create_system(definition, topology, forcefield)
+    if check is not None:
+        check(system)
     start = time.perf_counter()
     state = equilibrate(definition, system, positions, progress=progress)
     prepared = PreparedSystem(definition.name, definition, key, topology, system, state)

@@ -1,0 +1,195 @@
+"""The ``alphaprk`` console script, run as a subprocess as a user would."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from openmm_alphaprk.systems.definitions import DEFINITIONS_DIR
+
+SCRIPT = Path(sys.executable).with_name("alphaprk")
+
+
+def alphaprk(*args, cwd, env_cache, check=True):
+    env = {**os.environ, "ALPHAPRK_CACHE_DIR": str(env_cache)}
+    result = subprocess.run(
+        [str(SCRIPT), *map(str, args)], cwd=cwd, env=env, capture_output=True, text=True, timeout=300
+    )
+    if check and result.returncode != 0:
+        raise AssertionError(f"alphaprk {args} failed ({result.returncode}):\n{result.stderr}")
+    return result
+
+
+@pytest.fixture(scope="module")
+def quick_definition(tmp_path_factory):
+    """tip3p-2nm as a definition file with a short equilibration (the CLI takes .toml paths)."""
+    folder = tmp_path_factory.mktemp("definitions")
+    source = (DEFINITIONS_DIR / "tip3p-2nm.toml").read_text()
+    source = source.replace("langevin_steps = 1000", "langevin_steps = 10").replace(
+        "minimize_max_iterations = 500", "minimize_max_iterations = 50"
+    )
+    path = folder / "quick-box.toml"
+    path.write_text(source)
+    return path
+
+
+@pytest.fixture(scope="module")
+def cache(tmp_path_factory):
+    return tmp_path_factory.mktemp("cli-cache")
+
+
+def test_script_is_installed():
+    assert SCRIPT.is_file(), "run `pip install -e .[test,plots]` to install the alphaprk console script"
+
+
+def test_help_explains_every_option_with_units(tmp_path, cache):
+    top = alphaprk("--help", cwd=tmp_path, env_cache=cache).stdout
+    for command in ("systems", "run", "compare", "analyze"):
+        assert command in top
+    assert "leapfrog" in top and "alpha=<number>" in top
+    run_help = alphaprk("run", "--help", cwd=tmp_path, env_cache=cache).stdout
+    for option, unit in (
+        ("--timestep", "fs"),
+        ("--length", "ps"),
+        ("--steps", "steps"),
+        ("--platform", "CPU"),
+        ("--constraint-tolerance", "dimensionless"),
+        ("--energy-interval", "steps"),
+        ("--trajectory-interval", "steps"),
+        ("--checkpoint-interval", "steps"),
+        ("--cache-dir", "ALPHAPRK_CACHE_DIR"),
+    ):
+        assert option in run_help and unit in run_help
+    compare_help = alphaprk("compare", "--help", cwd=tmp_path, env_cache=cache).stdout
+    assert "kJ/mol/ns per DOF" in compare_help and "tip3p-3nm" in compare_help
+    analyze_help = alphaprk("analyze", "--help", cwd=tmp_path, env_cache=cache).stdout
+    assert "--rdf-max" in analyze_help and "nm" in analyze_help
+    module = subprocess.run(
+        [sys.executable, "-m", "openmm_alphaprk", "--help"], capture_output=True, text=True, check=True
+    )
+    assert module.stdout == top
+
+
+def test_systems_lists_the_definitions(tmp_path, cache):
+    out = alphaprk("systems", cwd=tmp_path, env_cache=cache).stdout
+    for name in ("tip3p-3nm", "spce-3nm", "tip4pew-3nm", "water-cluster", "villin"):
+        assert name in out
+
+
+def test_run_then_analyze(tmp_path, cache, quick_definition):
+    result = alphaprk(
+        "run",
+        quick_definition,
+        "alpha=1/6",
+        "-o",
+        "out",
+        "--length",
+        "0.04ps",
+        "--timestep",
+        "2 fs",
+        "--energy-interval",
+        "2",
+        "--trajectory-interval",
+        "5",
+        "--quiet",
+        cwd=tmp_path,
+        env_cache=cache,
+    )
+    summary = json.loads(result.stdout)
+    assert summary["steps"] == 20 and summary["integrator"] == "alpha=1/6"
+    assert json.loads((tmp_path / "out" / "summary.json").read_text()) == summary
+    analysis = alphaprk("analyze", "out", "--rdf-max", "0.8nm", cwd=tmp_path, env_cache=cache)
+    assert "O-O RDF: first peak" in analysis.stdout and "drift" in analysis.stdout
+    assert (tmp_path / "out" / "rdf_OO.png").is_file() and (tmp_path / "out" / "analysis.json").is_file()
+    # the same command again: the finished run is reported, not redone
+    again = alphaprk(
+        "run",
+        quick_definition,
+        "alpha=1/6",
+        "-o",
+        "out",
+        "--length",
+        "0.04ps",
+        "--energy-interval",
+        "2",
+        "--trajectory-interval",
+        "5",
+        "--quiet",
+        cwd=tmp_path,
+        env_cache=cache,
+    )
+    assert json.loads(again.stdout) == summary
+
+
+def test_compare_prints_the_table(tmp_path, cache, quick_definition):
+    result = alphaprk(
+        "compare",
+        quick_definition,
+        "-i",
+        "rattle",
+        "energy",
+        "verlet",
+        "--steps",
+        "4",
+        "--energy-interval",
+        "2",
+        "--quiet",
+        "-o",
+        "cmp",
+        cwd=tmp_path,
+        env_cache=cache,
+    )
+    lines = result.stdout.splitlines()
+    assert any(line.startswith("rattle ") for line in lines)
+    assert any(line.startswith("energy ") for line in lines)
+    assert "leapfrog" in result.stdout and (tmp_path / "cmp" / "energy_residuals.png").is_file()
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["run", "tip5p-box", "rattle"], "unknown system 'tip5p-box'"),
+        (["run", "tip3p-2nm", "leapfrog"], "unknown integrator 'leapfrog'"),
+        (["run", "tip3p-2nm", "rattle", "--timestep", "2nm"], "'nm' is not a unit of a time"),
+        (["run", "tip3p-2nm", "rattle", "--timestep", "2"], "has no unit"),
+        (["run", "tip3p-2nm", "rattle", "--length=-1ps"], "must be positive"),
+        (["run", "tip4pew-3nm", "rattle"], "virtual sites"),
+        (["compare", "tip4pew-3nm"], "virtual sites"),
+        (["analyze", "nowhere"], "not a run directory"),
+    ],
+)
+def test_errors_are_one_clear_line(tmp_path, cache, args, message):
+    result = alphaprk(*args, cwd=tmp_path, env_cache=cache, check=False)
+    assert result.returncode == 2
+    assert message in result.stderr
+    assert "Traceback" not in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1
+
+
+def test_output_directory_with_a_different_run_is_refused(tmp_path, cache, quick_definition):
+    common = ["--steps", "2", "--quiet", "-o", "out"]
+    alphaprk("run", quick_definition, "rattle", *common, cwd=tmp_path, env_cache=cache)
+    result = alphaprk("run", quick_definition, "verlet", *common, cwd=tmp_path, env_cache=cache, check=False)
+    assert result.returncode == 2
+    assert "holds a different run (integrator: stored 'rattle', requested 'verlet')" in result.stderr
+    (tmp_path / "papers").mkdir()
+    (tmp_path / "papers" / "draft.tex").write_text("keep me")
+    result = alphaprk(
+        "run",
+        quick_definition,
+        "rattle",
+        "--steps",
+        "2",
+        "-o",
+        "papers",
+        cwd=tmp_path,
+        env_cache=cache,
+        check=False,
+    )
+    assert result.returncode == 2 and "not a run directory" in result.stderr
+    assert (tmp_path / "papers" / "draft.tex").read_text() == "keep me"
