@@ -1,0 +1,48 @@
+"""The examples run (with few steps), so they cannot rot."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
+
+
+@pytest.fixture(scope="module")
+def env(tmp_path_factory):
+    return {**os.environ, "ALPHAPRK_CACHE_DIR": str(tmp_path_factory.mktemp("example-cache"))}
+
+
+def _run(script: str, *args, cwd, env) -> str:
+    result = subprocess.run(
+        [sys.executable, str(EXAMPLES / script), *args],
+        cwd=cwd,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert result.returncode == 0, result.stderr
+    return result.stdout
+
+
+def test_dropin_simulation_script(tmp_path, env):
+    out = _run("simulation_dropin.py", "--steps", "20", "--output", "run", cwd=tmp_path, env=env)
+    assert "force evaluations per step" in out
+    rows = (tmp_path / "run" / "energies.csv").read_text().splitlines()
+    assert rows[0].startswith("#") and len(rows) == 3  # header + steps 10, 20
+
+
+def test_compare_script(tmp_path, env):
+    out = _run("compare_integrators.py", "--steps", "6", "--output", "cmp", cwd=tmp_path, env=env)
+    assert "alpha=1/6" in out and "figure:" in out
+    assert (tmp_path / "cmp" / "energy_residuals.png").is_file()
+
+
+def test_analysis_script(tmp_path, env):
+    out = _run("analyze_run.py", "--steps", "40", cwd=tmp_path, env=env)
+    assert "O-O RDF: first peak" in out and "diffusion: D =" in out and "drift_per_dof" in out
