@@ -211,6 +211,14 @@ def format_table(summaries: Sequence[RunSummary], header: str = "", verlet_note:
                 f"p95 {c['alpha_percentiles']['p95']:.2f}), fell back {c['fraction_fallen_back']:.0%}, "
                 f"at bound {c['fraction_at_bound']:.0%}"
             )
+    for s in summaries:
+        if s.momentum_change:
+            m = s.momentum_change
+            lines.append(
+                f"{s.integrator}: isolated system, max change of linear momentum "
+                f"{m['linear_amu_nm_per_ps']:.1e} amu nm/ps, of angular momentum "
+                f"{m['angular_amu_nm2_per_ps']:.1e} amu nm^2/ps"
+            )
     if verlet_note:
         lines.append(VERLET_NOTE)
     return "\n".join(lines)

@@ -64,6 +64,7 @@ class RunSummary:
     force_evaluations_per_step: float
     velocity_verlet: bool
     controller: dict = field(default_factory=dict)
+    momentum_change: dict = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
 
     def as_dict(self) -> dict:
@@ -349,6 +350,9 @@ def summarize(
             "H - E_ref is not comparable step for step with velocity-Verlet integrators; drift is. Its "
             "velocities are half-step velocities, so the velocity-constraint error is not meaningful."
         )
+    momentum_change = {}
+    if not prepared.system.usesPeriodicBoundaryConditions():  # isolated: P and L are invariants
+        momentum_change = _momentum_change(prepared, state)
     controller = {}
     if spec.kind == "energy":
         controller = summarize_controller(read_controller_csv(output / rundir.CONTROLLER_FILE)).as_dict()
@@ -378,6 +382,7 @@ def summarize(
         force_evaluations_per_step=float(evaluations),
         velocity_verlet=spec.velocity_verlet,
         controller=controller,
+        momentum_change=momentum_change,
         notes=notes,
     )
 
@@ -400,6 +405,27 @@ def constraint_errors(system: mm.System, x: np.ndarray, v: np.ndarray) -> tuple[
         float(np.max(np.abs(norm - lengths) / lengths)),
         float(np.max(np.abs(np.einsum("ij,ij->i", dv, r)) / norm)),
     )
+
+
+def _momenta(system: mm.System, state: mm.State) -> tuple[np.ndarray, np.ndarray]:
+    """Total linear (amu nm/ps) and angular momentum about the origin (amu nm²/ps)."""
+    m = np.array(
+        [system.getParticleMass(i).value_in_unit(unit.dalton) for i in range(system.getNumParticles())]
+    )
+    x = state.getPositions(asNumpy=True).value_in_unit(unit.nanometers)
+    v = state.getVelocities(asNumpy=True).value_in_unit(unit.nanometers / unit.picoseconds)
+    return (m[:, None] * v).sum(0), (m[:, None] * np.cross(x, v)).sum(0)
+
+
+def _momentum_change(prepared: PreparedSystem, final: mm.State) -> dict:
+    """Max component of the change of linear and angular momentum from the start state to ``final``."""
+    p0, l0 = _momenta(prepared.system, prepared.state)
+    p1, l1 = _momenta(prepared.system, final)
+    return {
+        "linear_amu_nm_per_ps": float(np.abs(p1 - p0).max()),
+        "angular_amu_nm2_per_ps": float(np.abs(l1 - l0).max()),
+        "angular_start_amu_nm2_per_ps": float(np.abs(l0).max()),
+    }
 
 
 def _platform(name: str, precision: str | None) -> tuple[mm.Platform, dict]:

@@ -136,6 +136,10 @@ def test_blow_up_stops_with_a_clear_error_and_keeps_the_output(box, tmp_path):
     assert rundir.read_energies(tmp_path / rundir.ENERGIES_FILE).shape[0] >= 1
 
 
+def test_periodic_box_reports_no_momentum_invariants(box, tmp_path):
+    assert run_nve(box, "rattle", tmp_path, steps=2, **REFERENCE_RUN).momentum_change == {}
+
+
 def test_compare_table_figure_and_json(box, tmp_path):
     result = compare(
         box, ["rattle", "alpha=1/6", "verlet"], tmp_path, steps=6, energy_interval=2, progress=False
@@ -147,3 +151,11 @@ def test_compare_table_figure_and_json(box, tmp_path):
     assert len(data["summaries"]) == 3 and (tmp_path / "alpha=1_6" / "summary.json").is_file()
     with pytest.raises(ValueError, match="repeated"):
         compare(box, ["rattle", "RATTLE"], tmp_path / "x", steps=2, progress=False)
+
+
+def test_isolated_cluster_keeps_momenta(cluster, tmp_path):
+    """Vacuum cluster, no cutoff: P and L are invariants of every member of the family."""
+    for integrator in ("rattle", "alpha=0.5"):
+        summary = run_nve(cluster, integrator, tmp_path / integrator, steps=40, **REFERENCE_RUN)
+        assert summary.momentum_change["linear_amu_nm_per_ps"] < 1e-9
+        assert summary.momentum_change["angular_amu_nm2_per_ps"] < 1e-8
