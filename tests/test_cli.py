@@ -6,6 +6,7 @@ import json
 import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -193,3 +194,51 @@ def test_output_directory_with_a_different_run_is_refused(tmp_path, cache, quick
     )
     assert result.returncode == 2 and "not a run directory" in result.stderr
     assert (tmp_path / "papers" / "draft.tex").read_text() == "keep me"
+
+
+def test_killed_run_resumes_to_the_uninterrupted_result(tmp_path, cache):
+    """SIGKILL part-way (no clean-up at all), then the same command: the same files as one run."""
+    source = (DEFINITIONS_DIR / "water-cluster.toml").read_text()
+    definition = tmp_path / "quick-cluster.toml"
+    definition.write_text(source.replace("langevin_steps = 1000", "langevin_steps = 10"))
+    args = [
+        str(SCRIPT),
+        "run",
+        definition,
+        "rattle",
+        "--platform",
+        "Reference",
+        "--steps",
+        "2500",
+        "--checkpoint-interval",
+        "500",
+        "--energy-interval",
+        "10",
+        "--trajectory-interval",
+        "50",
+        "--quiet",
+    ]
+    env = {**os.environ, "ALPHAPRK_CACHE_DIR": str(cache)}
+    subprocess.run([*map(str, args), "-o", "whole"], cwd=tmp_path, env=env, check=True, capture_output=True)
+    process = subprocess.Popen([*map(str, args), "-o", "parts"], cwd=tmp_path, env=env)
+    checkpoint = tmp_path / "parts" / "checkpoint.chk"
+    deadline = time.monotonic() + 120
+    while not checkpoint.exists() and time.monotonic() < deadline and process.poll() is None:
+        time.sleep(0.05)
+    process.kill()
+    process.wait()
+    assert not (tmp_path / "parts" / "summary.json").exists(), "the run finished before it could be killed"
+    energies = (tmp_path / "parts" / "energies.csv").read_text()
+    assert energies.startswith("#") and len(energies.splitlines()) > 1  # readable after a kill
+    alphaprk(*args[1:], "-o", "parts", cwd=tmp_path, env_cache=cache)
+    read = {run: (tmp_path / run / "trajectory.dcd").read_bytes() for run in ("parts", "whole")}
+    assert (tmp_path / "parts" / "energies.csv").read_text() == (
+        tmp_path / "whole" / "energies.csv"
+    ).read_text()
+    # DCD: the same frame count and frames; the header's title holds the creation time
+    assert read["parts"][8:12] == read["whole"][8:12] and read["parts"][276:] == read["whole"][276:]
+    assert len(read["whole"]) > 276 + 40 * 3 * 222 * 4
+    whole = json.loads((tmp_path / "whole" / "summary.json").read_text())
+    parts = json.loads((tmp_path / "parts" / "summary.json").read_text())
+    for key in ("e_ref", "drift_per_dof", "rms_residual", "max_relative_constraint_error", "momentum_change"):
+        assert parts[key] == whole[key], key
