@@ -17,6 +17,7 @@ after the last checkpoint by an interrupted run are not duplicated.
 from __future__ import annotations
 
 import json
+import math
 import os
 import struct
 from pathlib import Path
@@ -65,7 +66,7 @@ def check_run_directory(path: Path, parameters: dict[str, Any]) -> dict[str, Any
     differences = [
         f"{key}: stored {stored.get(key)!r}, requested {value!r}"
         for key, value in parameters.items()
-        if key not in _MAY_DIFFER and stored.get(key) != value
+        if key not in _MAY_DIFFER and not _same(stored.get(key), value)
     ]
     if differences:
         raise RunDirectoryError(
@@ -73,6 +74,15 @@ def check_run_directory(path: Path, parameters: dict[str, Any]) -> dict[str, Any
             "output directory, or repeat the stored settings to resume or extend that run."
         )
     return stored
+
+
+def _same(a: Any, b: Any) -> bool:
+    """Equal, with floats compared to 1e-12 relative (unit conversions round differently)."""
+    if isinstance(a, float) or isinstance(b, float):
+        return (
+            isinstance(a, (int, float)) and isinstance(b, (int, float)) and math.isclose(a, b, rel_tol=1e-12)
+        )
+    return a == b
 
 
 def write_parameters(path: Path, parameters: dict[str, Any]) -> None:

@@ -89,7 +89,8 @@ def test_finished_run_is_reported_and_can_be_extended(box, tmp_path):
     first = run_nve(box, "rattle", tmp_path, steps=10, **REFERENCE_RUN)
     again = run_nve(box, "rattle", tmp_path, steps=10, **REFERENCE_RUN)
     assert again == first
-    longer = run_nve(box, "rattle", tmp_path, steps=20, **REFERENCE_RUN)
+    # the same step given as a Quantity in fs is the same run
+    longer = run_nve(box, "rattle", tmp_path, steps=20, timestep=2 * unit.femtoseconds, **REFERENCE_RUN)
     assert longer.steps == 20 and longer.steps_this_call == 10
     assert rundir.read_energies(tmp_path / rundir.ENERGIES_FILE)[:, 0].tolist() == list(range(0, 21, 2))
 
