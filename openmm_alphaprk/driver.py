@@ -239,6 +239,7 @@ def run_nve(
         start_step = 0
     if start_step >= steps and (output / rundir.SUMMARY_FILE).is_file():
         return RunSummary(**json.loads((output / rundir.SUMMARY_FILE).read_text()))
+    (output / rundir.SUMMARY_FILE).unlink(missing_ok=True)  # an extended run is not complete until it ends
 
     reporters = _reporters(output, spec, intervals, append=resume)
     if not resume:  # the start state's energy row: E_ref
