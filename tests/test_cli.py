@@ -82,6 +82,11 @@ def test_systems_lists_the_definitions(tmp_path, cache):
         assert name in out
 
 
+def test_systems_build_caches_a_definition(tmp_path, cache, quick_definition):
+    out = alphaprk("systems", "--build", quick_definition, cwd=tmp_path, env_cache=cache).stdout
+    assert "quick-box: 774 atoms, cached in" in out and str(cache) in out
+
+
 def test_run_then_analyze(tmp_path, cache, quick_definition):
     result = alphaprk(
         "run",

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import sys
 import tempfile
 import time
 from collections.abc import Callable
@@ -143,6 +144,14 @@ def prepare_system(
     system = create_system(definition, topology, forcefield)
     if check is not None:
         check(system)
+    if progress:
+        where = f"; cached in {path}" if use_cache else ""
+        print(
+            f"building {definition.name} ({system.getNumParticles()} atoms): minimizing and equilibrating, "
+            f"once{where}",
+            file=sys.stderr,
+            flush=True,
+        )
     start = time.perf_counter()
     state = equilibrate(definition, system, positions, progress=progress)
     prepared = PreparedSystem(definition.name, definition, key, topology, system, state)
