@@ -48,6 +48,12 @@ def create_system(definition: SystemDefinition, topology: app.Topology, forcefie
     }
     if build["nonbonded_method"] == "PME":
         kwargs.update(nonbondedMethod=app.PME, nonbondedCutoff=float(build["cutoff_nm"]) * unit.nanometers)
+        # smooth forces at the cutoff (see waterbox.build_water_box): otherwise the energy
+        # error of any integrator is dominated by pairs crossing the cutoff
+        if "switch_distance_nm" in build:
+            kwargs["switchDistance"] = float(build["switch_distance_nm"]) * unit.nanometers
+        if "ewald_error_tolerance" in build:
+            kwargs["ewaldErrorTolerance"] = float(build["ewald_error_tolerance"])
     else:
         kwargs.update(nonbondedMethod=app.NoCutoff)
     return forcefield.createSystem(topology, **kwargs)

@@ -154,6 +154,17 @@ def parse_definition(data: dict[str, Any], name: str) -> SystemDefinition:
     for key in ("box_edge_nm", "cutoff_nm", "radius_nm"):
         if key in build and not build[key] > 0:
             raise DefinitionError(f"system {name!r}: build.{key} must be positive, got {build[key]}.")
+    for key in ("switch_distance_nm", "ewald_error_tolerance"):
+        if key in build:
+            value = build[key]
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:
+                raise DefinitionError(
+                    f"system {name!r}: build.{key} must be a positive number, got {value!r}."
+                )
+    if "switch_distance_nm" in build and not build["switch_distance_nm"] < build.get("cutoff_nm", 0):
+        raise DefinitionError(
+            f"system {name!r}: build.switch_distance_nm must be below cutoff_nm (and needs a cutoff)."
+        )
     if kind == "water_box" and build["cutoff_nm"] >= build["box_edge_nm"] / 2:
         raise DefinitionError(
             f"system {name!r}: cutoff_nm {build['cutoff_nm']} must be below half the box edge "
