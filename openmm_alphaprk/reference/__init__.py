@@ -5,6 +5,13 @@ Used by the tests to check the OpenMM integrators and the theory: the step itsel
 ready problems (pendulums, a harmonic oscillator, rigid molecules in vacuum).
 """
 
+from .composition import (
+    GAMMA1,
+    GAMMA2,
+    alpha_rattle4_step,
+    energy_preserving_step,
+    integrate_energy_preserving,
+)
 from .geometry import symplectic_form, symplecticity_defect, tangent_vectors
 from .problems import (
     angular_momentum,
@@ -30,7 +37,12 @@ from .step import (
 )
 
 __all__ = [
+    "GAMMA1",
+    "GAMMA2",
     "ConstrainedProblem",
+    "alpha_rattle4_step",
+    "energy_preserving_step",
+    "integrate_energy_preserving",
     "StepInfo",
     "alpha_rattle_step",
     "angular_momentum",

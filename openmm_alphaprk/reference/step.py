@@ -230,17 +230,21 @@ def integrate(
     alpha: float = 0.0,
     *,
     record: bool = False,
+    step: Callable[..., tuple[Array, Array, Array]] | None = None,
     **step_options,
 ) -> tuple[Array, Array] | tuple[Array, Array, Array, Array]:
     """Take ``n_steps`` α-RATTLE steps; with ``record`` also return the trajectory.
 
-    Returns (x, v) at the end, or (x, v, xs, vs) with xs, vs of shape (n_steps+1, n).
+    ``step`` replaces :func:`alpha_rattle_step` (e.g. by the fourth-order
+    ``alpha_rattle4_step``). Returns (x, v) at the end, or (x, v, xs, vs) with xs,
+    vs of shape (n_steps+1, n).
     """
+    step = alpha_rattle_step if step is None else step
     x, v = np.array(x0, dtype=float), np.array(v0, dtype=float)
     f = problem.force(x)
     xs, vs = [x], [v]
     for _ in range(n_steps):
-        x, v, f = alpha_rattle_step(problem, x, v, h, alpha, f0=f, **step_options)
+        x, v, f = step(problem, x, v, h, alpha, f0=f, **step_options)
         if record:
             xs.append(x)
             vs.append(v)
