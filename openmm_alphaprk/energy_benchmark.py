@@ -1,4 +1,4 @@
-"""Energy benchmark: the energy-preserving mode against RATTLE from the same start.
+"""Energy benchmark: the energy modes and α-RATTLE-4 against RATTLE from the same start.
 
 Every integrator runs NVE from the same equilibrated TIP3P state, on the same
 platform and step, in the same process. After every step the total energy is read
@@ -7,7 +7,9 @@ compared with the starting energy E_ref. Reported per integrator: drift (linear 
 kJ/mol/ns per degree of freedom), RMS and max of H − E_ref, for the energy mode the
 α* percentiles and the fractions of steps within tolerance / fallen back / at a
 bound, force evaluations per step, and ms/step as a ratio to RATTLE from separate,
-interleaved timing rounds without energy read-out.
+interleaved timing rounds without energy read-out. RATTLE also runs at h/k, with k
+α-RATTLE-4's measured force evaluations per step (equal cost). ``--scan`` adds a
+step-size scan for the largest stable step of each integrator.
 
 Run ``python -m openmm_alphaprk.energy_benchmark --help`` for the options.
 """
@@ -50,13 +52,37 @@ class EnergyRow:
     blew_up_at_step: int | None = None
 
 
-def default_integrators(timestep: float) -> dict[str, Callable[[], mm.Integrator]]:
-    """RATTLE (the baseline), the energy mode, and the energy mode with tight α bounds."""
+@dataclass(frozen=True)
+class IntegratorSpec:
+    """How to make one row's integrator: ``substeps`` steps of ``make()`` per benchmark step."""
+
+    make: Callable[[], mm.Integrator]
+    substeps: int = 1
+
+
+#: Name of the row whose force evaluations per step set k for the equal-cost RATTLE row.
+EQUAL_COST_REFERENCE = "α-RATTLE-4 energy"
+
+
+def default_integrators(timestep: float) -> dict[str, IntegratorSpec]:
+    """RATTLE (the baseline), both energy modes and α-RATTLE-4 at α = 0.
+
+    The equal-cost row (RATTLE at h/k, k = α-RATTLE-4's mean force evaluations per
+    step) is added by :func:`run_energy_benchmark` once k is measured.
+    """
     return {
-        "RATTLE": lambda: RattleIntegrator(timestep),
-        "energy [-1,3]": lambda: AlphaRattleIntegrator(timestep, alpha="energy"),
-        "energy [0,1]": lambda: AlphaRattleIntegrator(timestep, alpha="energy", alpha_bounds=(0.0, 1.0)),
+        "RATTLE": IntegratorSpec(lambda: RattleIntegrator(timestep)),
+        "α-RATTLE energy": IntegratorSpec(lambda: AlphaRattleIntegrator(timestep, alpha="energy")),
+        "α-RATTLE-4 α=0": IntegratorSpec(lambda: AlphaRattleIntegrator(timestep, alpha=0.0, order=4)),
+        EQUAL_COST_REFERENCE: IntegratorSpec(
+            lambda: AlphaRattleIntegrator(timestep, alpha="energy", order=4)
+        ),
     }
+
+
+def equal_cost_rattle(timestep: float, k: int) -> IntegratorSpec:
+    """RATTLE at h/k, k sub-steps per benchmark step: the same force evaluations as k per step."""
+    return IntegratorSpec(lambda: RattleIntegrator(timestep / k), substeps=k)
 
 
 def degrees_of_freedom(system: mm.System) -> int:
@@ -86,90 +112,192 @@ def _total_energy(context: mm.Context) -> float:
     return (state.getPotentialEnergy() + state.getKineticEnergy()).value_in_unit(unit.kilojoules_per_mole)
 
 
+def _run_one(
+    name: str,
+    spec: IntegratorSpec,
+    box: WaterBox,
+    plat: mm.Platform,
+    samples: int,
+    dof: int,
+    progress: bool,
+    every: int = 1,
+) -> tuple[EnergyRow, np.ndarray, mm.Integrator, mm.Context]:
+    integrator = spec.make()
+    context = _context(box, integrator, plat)
+    step_ps = integrator.getStepSize().value_in_unit(unit.picoseconds) * spec.substeps * every
+    e_ref = _total_energy(context)
+    residuals = np.full(samples, np.nan)
+    alphas = np.full(samples, np.nan)
+    blew_up = None
+    energy_mode = getattr(integrator, "energy_mode", False)
+    for i in tqdm(range(samples), desc=name, disable=not progress, mininterval=5.0, file=sys.stderr):
+        try:
+            integrator.step(spec.substeps * every)
+        except Exception:  # a failed step is the blow-up we report, not a crash of the benchmark
+            blew_up = i * every
+            break
+        residuals[i] = _total_energy(context) - e_ref
+        if energy_mode:
+            alphas[i] = integrator.alpha
+        if not np.isfinite(residuals[i]) or abs(residuals[i]) > BLOW_UP_ENERGY:
+            blew_up = i * every
+            break
+    done = np.isfinite(residuals)
+    times = (np.arange(samples) + 1) * step_ps
+    row = EnergyRow(
+        name=name,
+        steps=int(done.sum()) * every,
+        drift_per_dof=drift_per_dof(times[done], residuals[done], dof) if done.sum() > 1 else float("nan"),
+        rms_residual=float(np.sqrt(np.mean(residuals[done] ** 2))) if done.any() else float("nan"),
+        max_abs_residual=float(np.max(np.abs(residuals[done]))) if done.any() else float("nan"),
+        force_evaluations_per_step=_evaluations_per_step(integrator) * spec.substeps,
+        blew_up_at_step=blew_up,
+    )
+    if energy_mode:
+        totals = integrator.controller_totals()
+        percentiles = (1, 5, 25, 50, 75, 95, 99)
+        values = np.nanpercentile(alphas, percentiles) if done.any() else [float("nan")] * len(percentiles)
+        row.alpha_percentiles = {f"p{p}": float(v) for p, v in zip(percentiles, values)}
+        row.fraction_within_tolerance = totals["fraction_within_tolerance"]
+        row.fraction_fallen_back = totals["fraction_fallen_back"]
+        row.fraction_at_bound = totals["steps_at_bound"] / max(totals["steps"], 1)
+    return row, residuals, integrator, context
+
+
+def _evaluations_per_step(integrator: mm.Integrator) -> float:
+    return getattr(integrator, "force_evaluations_per_step", 1.0)
+
+
+#: |H − E_ref| (kJ/mol) above which a run counts as blown up.
+BLOW_UP_ENERGY = 1e4
+
+
 def run_energy_benchmark(
     box: WaterBox,
-    integrators: dict[str, Callable[[], mm.Integrator]],
+    integrators: dict[str, IntegratorSpec],
     *,
     platform: str = "CPU",
     steps: int = 10_000,
+    sample_every: int = 1,
+    equal_cost: bool = True,
     timing_steps: int = 100,
     timing_rounds: int = 3,
     progress: bool = True,
 ) -> tuple[list[EnergyRow], dict[str, np.ndarray]]:
     """Run each integrator for ``steps`` steps from the same state; time them after.
 
+    Parameters
+    ----------
+    box
+        System and equilibrated state.
+    integrators
+        Rows by name; the first is the baseline of the time ratios.
+    platform
+        OpenMM platform name.
+    steps
+        Benchmark steps per row (a row with ``substeps`` k takes k integrator steps each).
+    sample_every
+        Read the energy every this many benchmark steps (RMS and α* percentiles are
+        over the samples).
+    equal_cost
+        If the row :data:`EQUAL_COST_REFERENCE` is present, add "RATTLE h/k" with k its
+        measured force evaluations per step, rounded.
+    timing_steps, timing_rounds
+        The interleaved timing rounds (no energy read-out) for the ms/step column.
+    progress
+        Progress bars on stderr.
+
     Returns
     -------
     rows
-        One :class:`EnergyRow` per integrator, in order; the first is the baseline
-        of the time ratios.
+        One :class:`EnergyRow` per integrator, in order.
     residuals
-        H − E_ref after every step, by integrator name (for plots).
+        H − E_ref after every benchmark step, by row name (for plots).
     """
     plat = mm.Platform.getPlatformByName(platform)
     dof = degrees_of_freedom(box.system)
-    timestep_ps = None
+    integrators = dict(integrators)
     rows, traces, runs = [], {}, {}
-    for name, make in integrators.items():
-        integrator = make()
-        context = _context(box, integrator, plat)
-        timestep_ps = integrator.getStepSize().value_in_unit(unit.picoseconds)
-        e_ref = _total_energy(context)
-        residuals = np.full(steps, np.nan)
-        alphas = np.full(steps, np.nan)
-        blew_up = None
-        energy_mode = getattr(integrator, "energy_mode", False)
-        for i in tqdm(range(steps), desc=name, disable=not progress, mininterval=2.0, file=sys.stderr):
-            try:
-                integrator.step(1)
-            except Exception:  # a failed step is the blow-up we report, not a crash of the benchmark
-                blew_up = i
-                break
-            residuals[i] = _total_energy(context) - e_ref
-            if energy_mode:
-                alphas[i] = integrator.alpha
-            if not np.isfinite(residuals[i]) or abs(residuals[i]) > 1e6:
-                blew_up = i
-                break
-        done = np.isfinite(residuals)
-        times = (np.arange(steps) + 1) * timestep_ps
-        row = EnergyRow(
-            name=name,
-            steps=int(done.sum()),
-            drift_per_dof=drift_per_dof(times[done], residuals[done], dof),
-            rms_residual=float(np.sqrt(np.mean(residuals[done] ** 2))),
-            max_abs_residual=float(np.max(np.abs(residuals[done]))),
-            force_evaluations_per_step=integrator.force_evaluations_per_step,
-            blew_up_at_step=blew_up,
+    names = list(integrators)
+    while names:
+        name = names.pop(0)
+        spec = integrators[name]
+        row, residuals, integrator, context = _run_one(
+            name, spec, box, plat, steps // sample_every, dof, progress, sample_every
         )
-        if energy_mode:
-            totals = integrator.controller_totals()
-            row.alpha_percentiles = {
-                f"p{p}": float(v)
-                for p, v in zip(
-                    (1, 5, 25, 50, 75, 95, 99), np.nanpercentile(alphas, (1, 5, 25, 50, 75, 95, 99))
-                )
-            }
-            row.fraction_within_tolerance = totals["fraction_within_tolerance"]
-            row.fraction_fallen_back = totals["fraction_fallen_back"]
-            row.fraction_at_bound = totals["steps_at_bound"] / totals["steps"]
         rows.append(row)
         traces[name] = residuals
-        runs[name] = integrator, context
+        runs[name] = integrator, context, spec.substeps
+        if equal_cost and name == EQUAL_COST_REFERENCE and row.blew_up_at_step is None:
+            k = max(1, int(round(row.force_evaluations_per_step)))
+            timestep = integrator.getStepSize().value_in_unit(unit.picoseconds)
+            equal_name = f"RATTLE h/{k}"
+            integrators[equal_name] = equal_cost_rattle(timestep, k)
+            names.append(equal_name)
     times_ms: dict[str, list[float]] = {name: [] for name in runs}
     for _ in range(timing_rounds):
-        for name, (integrator, _) in runs.items():
-            if rows[list(runs).index(name)].blew_up_at_step is not None:
+        for row in rows:
+            if row.blew_up_at_step is not None:
                 continue
+            integrator, _, substeps = runs[row.name]
             start = time.perf_counter()
-            integrator.step(timing_steps)
-            times_ms[name].append((time.perf_counter() - start) / timing_steps * 1e3)
+            integrator.step(timing_steps * substeps)
+            times_ms[row.name].append((time.perf_counter() - start) / timing_steps * 1e3)
     baseline = statistics.median(times_ms[rows[0].name]) if times_ms[rows[0].name] else float("nan")
     for row in rows:
         if times_ms[row.name]:
             row.ms_per_step = statistics.median(times_ms[row.name])
             row.time_ratio = row.ms_per_step / baseline
     return rows, traces
+
+
+def largest_stable_step(
+    box: WaterBox,
+    make: Callable[[float], mm.Integrator],
+    steps_fs: Sequence[float],
+    *,
+    platform: str = "CPU",
+    time_ps: float = 1.0,
+) -> tuple[float | None, dict[float, str]]:
+    """Step-size scan: the largest step (fs) of ``steps_fs`` that runs ``time_ps`` without blowing up.
+
+    A run blows up when a step raises (e.g. the midpoint iteration diverges), the
+    energy is not finite, or |H − E_ref| exceeds :data:`BLOW_UP_ENERGY`. The scan
+    goes up in ``steps_fs`` and stops at the first failure.
+
+    Returns
+    -------
+    largest
+        The largest stable step (fs), or None if the smallest already failed.
+    outcomes
+        "stable (max |H − E_ref| ...)" or the failure, by step size.
+    """
+    plat = mm.Platform.getPlatformByName(platform)
+    largest, outcomes = None, {}
+    for h_fs in sorted(steps_fs):
+        integrator = make(h_fs / 1000.0)
+        context = _context(box, integrator, plat)
+        e_ref = _total_energy(context)
+        n = int(round(time_ps / (h_fs / 1000.0)))
+        worst, failure = 0.0, None
+        for _ in range(n):
+            try:
+                integrator.step(1)
+            except Exception as error:  # the failure is the measurement
+                failure = f"failed: {type(error).__name__}"
+                break
+            residual = _total_energy(context) - e_ref
+            if not np.isfinite(residual) or abs(residual) > BLOW_UP_ENERGY:
+                failure = f"blew up (|H - E_ref| = {abs(residual):.3g} kJ/mol)"
+                break
+            worst = max(worst, abs(residual))
+        del context
+        if failure:
+            outcomes[h_fs] = failure
+            break
+        outcomes[h_fs] = f"stable (max |H - E_ref| {worst:.3g} kJ/mol)"
+        largest = h_fs
+    return largest, outcomes
 
 
 def format_table(rows: Sequence[EnergyRow], header: str = "") -> str:
@@ -228,13 +356,29 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument(
         "--seed", type=int, default=2024, help="random seed of the equilibration (default 2024)"
     )
-    parser.add_argument("--json", help="also write the rows to this JSON file")
+    parser.add_argument(
+        "--sample-every",
+        type=int,
+        default=1,
+        help="read the total energy every N steps (default 1: every step)",
+    )
+    parser.add_argument(
+        "--scan",
+        nargs="*",
+        type=float,
+        default=None,
+        help="also scan these step sizes in fs (e.g. 2 3 4 5) for the largest stable step of each row's "
+        "integrator, 1 ps each",
+    )
+    parser.add_argument("--json", help="also write the rows (and scan) to this JSON file")
     parser.add_argument(
         "--traces", help="also write H - E_ref per step of every integrator to this .npz file"
     )
     args = parser.parse_args(argv)
     if min(args.box, args.timestep, args.time) <= 0:
         parser.error("--box, --timestep and --time must be positive")
+    if args.scan is not None and min(args.scan, default=1.0) <= 0:
+        parser.error("--scan step sizes must be positive")
     timestep = args.timestep / 1000.0
     integrators = default_integrators(timestep)
     if args.only:
@@ -251,17 +395,42 @@ def main(argv: Sequence[str] | None = None) -> int:
         platform=args.platform,
     )
     steps = int(round(args.time / args.timestep * 1000.0))
-    rows, traces = run_energy_benchmark(box, integrators, platform=args.platform, steps=steps)
+    if args.sample_every < 1:
+        parser.error("--sample-every must be a positive integer")
+    rows, traces = run_energy_benchmark(
+        box, integrators, platform=args.platform, steps=steps, sample_every=args.sample_every
+    )
     header = (
         f"TIP3P box {args.box} nm, {box.n_atoms} atoms, {degrees_of_freedom(box.system)} DOF, PME cutoff "
-        f"{args.cutoff} nm, {args.timestep} fs, {args.time} ps NVE, platform {args.platform}; drift in "
-        "kJ/mol/ns per DOF (linear fit); energies in kJ/mol; time ratio against RATTLE (median of 3 x 100 "
-        "timed steps)"
+        f"{args.cutoff} nm (LJ switched, Ewald tolerance 1e-6), {args.timestep} fs, {args.time} ps NVE, "
+        f"platform {args.platform}; energy read every {args.sample_every} step(s); drift in kJ/mol/ns "
+        "per DOF (linear fit); energies in kJ/mol; time ratio against RATTLE (median of 3 x 100 timed "
+        "steps, no energy read-out)"
     )
-    print(format_table(rows, header))
+    print(format_table(rows, header), flush=True)
+    result = {"header": header, "rows": [asdict(row) for row in rows]}
+    if args.scan:
+        makers = {
+            "RATTLE": lambda h: RattleIntegrator(h),
+            "α-RATTLE energy": lambda h: AlphaRattleIntegrator(h, alpha="energy"),
+            "α-RATTLE-4 α=0": lambda h: AlphaRattleIntegrator(h, alpha=0.0, order=4),
+            EQUAL_COST_REFERENCE: lambda h: AlphaRattleIntegrator(h, alpha="energy", order=4),
+        }
+        result["scan"] = {}
+        print("\nlargest stable step (1 ps per step size):")
+        for name, make in makers.items():
+            if name not in integrators:
+                continue
+            largest, outcomes = largest_stable_step(box, make, args.scan, platform=args.platform)
+            result["scan"][name] = {
+                "largest_fs": largest,
+                "outcomes": {str(k): v for k, v in outcomes.items()},
+            }
+            detail = "; ".join(f"{h:g} fs {text}" for h, text in outcomes.items())
+            print(f"  {name:<20} {largest} fs   ({detail})", flush=True)
     if args.json:
         with open(args.json, "w") as handle:
-            json.dump({"header": header, "rows": [asdict(row) for row in rows]}, handle, indent=2)
+            json.dump(result, handle, indent=2)
     if args.traces:
         np.savez_compressed(args.traces, timestep_ps=timestep, **traces)
     return 0
