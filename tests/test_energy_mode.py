@@ -10,7 +10,12 @@ from conftest import REFERENCE, constraint_errors, make_context, positions_of, t
 
 from openmm_alphaprk import AlphaRattleIntegrator, RattleIntegrator
 from openmm_alphaprk.reference import angular_momentum, to_openmm_system, water_cluster
-from openmm_alphaprk.reporters import COLUMNS, AlphaControllerReporter, read_controller_csv, summarize_controller
+from openmm_alphaprk.reporters import (
+    COLUMNS,
+    AlphaControllerReporter,
+    read_controller_csv,
+    summarize_controller,
+)
 
 
 def _cluster_context(integrator, seed=5):
@@ -58,12 +63,15 @@ def test_energy_mode_on_a_water_cluster_holds_energy_and_keeps_momenta():
     measured, claimed, fell_back = np.array(measured), np.array(claimed), np.array(fell_back)
     tolerance = integrator.energy_tolerance.value_in_unit(unit.kilojoules_per_mole)
 
-    assert integrator.reference_energy.value_in_unit(unit.kilojoules_per_mole) == pytest.approx(e_ref, abs=1e-9)
+    assert integrator.reference_energy.value_in_unit(unit.kilojoules_per_mole) == pytest.approx(
+        e_ref, abs=1e-9
+    )
     # the integrator's residual is the context's energy, and its verdict is honest
     assert np.max(np.abs(measured - claimed)) < 1e-8
     assert np.all(np.abs(measured[~fell_back]) <= tolerance)
-    # measured: 71% of steps within 0.01 kJ/mol, RMS 1/10 of RATTLE's (0.041 vs 0.42)
-    assert np.mean(~fell_back) > 0.6
+    # measured: 56% of steps within 0.01 kJ/mol, RMS 1/7 of RATTLE's (0.060 vs 0.42); with the
+    # design doc's bounds (-1, 3) and no slope damping 71% and 0.041 here, but worse on water boxes
+    assert np.mean(~fell_back) > 0.5
     rms = np.sqrt(np.mean(measured**2))
     assert rms < 0.2 * np.sqrt(np.mean(rattle_residuals**2))
     # no drift: the second half is no further from E_ref than the first
@@ -75,7 +83,7 @@ def test_energy_mode_on_a_water_cluster_holds_energy_and_keeps_momenta():
 
 
 def test_energy_mode_on_a_water_box_beats_rattle_and_keeps_constraints(water_box):
-    n = 100
+    n = 60
     rattle = RattleIntegrator(0.002)
     ctx = make_context(water_box.system, rattle, water_box.positions, water_box.velocities)
     rattle_rms = np.sqrt(np.mean(_residuals(ctx, rattle, n, total_energy(ctx))[0] ** 2))
@@ -86,9 +94,9 @@ def test_energy_mode_on_a_water_box_beats_rattle_and_keeps_constraints(water_box
     tolerance = integrator.energy_tolerance.value_in_unit(unit.kilojoules_per_mole)
     assert np.max(np.abs(measured - claimed)) < 1e-7
     assert np.all(np.abs(measured[~fell_back]) <= tolerance)
-    # measured on this box: RMS 0.29 vs RATTLE's 0.92 over 150 steps; one α often cannot
-    # reach E_ref here (78% of steps fall back), see docs/energy_mode.md
-    assert np.sqrt(np.mean(measured**2)) < 0.5 * rattle_rms
+    # measured on this (smooth) box over 60 steps: RMS 0.105 vs RATTLE's 0.706, 6.3 force
+    # evaluations per step; one α often cannot reach E_ref (60% of steps fall back)
+    assert np.sqrt(np.mean(measured**2)) < 0.3 * rattle_rms
     pos_err, vel_err = constraint_errors(water_box.system, positions_of(ctx), velocities_of(ctx))
     assert pos_err < 1e-6
     assert vel_err < 1e-6
@@ -155,7 +163,9 @@ def test_reference_energy_is_retaken_when_the_state_is_changed(water_box):
     heated = total_energy(ctx)
     integrator.step(1)
     assert integrator.controller_totals()["reference_resets"] == 2
-    assert integrator.reference_energy.value_in_unit(unit.kilojoules_per_mole) == pytest.approx(heated, abs=1e-8)
+    assert integrator.reference_energy.value_in_unit(unit.kilojoules_per_mole) == pytest.approx(
+        heated, abs=1e-8
+    )
     integrator.reset_reference_energy()
     now = total_energy(ctx)
     integrator.step(1)
@@ -182,8 +192,14 @@ def test_controller_reporter_writes_every_step_as_it_goes(water_box, tmp_path):
     summary = summarize_controller(rows)
     assert summary.steps == 4
     assert summary.force_evaluations_per_step == pytest.approx(integrator.force_evaluations_per_step)
-    assert summary.fraction_fallen_back == pytest.approx(integrator.controller_totals()["fraction_fallen_back"])
-    assert summary.alpha_percentiles["p1"] <= summary.alpha_percentiles["p50"] <= summary.alpha_percentiles["p99"]
+    assert summary.fraction_fallen_back == pytest.approx(
+        integrator.controller_totals()["fraction_fallen_back"]
+    )
+    assert (
+        summary.alpha_percentiles["p1"]
+        <= summary.alpha_percentiles["p50"]
+        <= summary.alpha_percentiles["p99"]
+    )
     assert reporter.summary().as_dict() == summary.as_dict()
 
     # a resumed run appends rows under the same header

@@ -392,7 +392,7 @@ def test_step_programs_are_small_and_start_quickly(water_box):
         ({"timestep": float("nan")}, ValueError, "finite"),
         ({"timestep": 0.002, "alpha": float("nan")}, ValueError, "alpha must be finite"),
         ({"timestep": 0.002, "alpha": float("inf")}, ValueError, "alpha must be finite"),
-        ({"timestep": 0.002, "alpha": "big"}, TypeError, "alpha must be a number"),
+        ({"timestep": 0.002, "alpha": "big"}, ValueError, "alpha must be a number or .energy."),
         ({"timestep": 0.002, "alpha": 1 * unit.nanometers}, TypeError, "alpha must be dimensionless"),
         (
             {"timestep": 0.002, "constraint_tolerance": 0.0},
