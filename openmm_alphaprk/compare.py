@@ -18,7 +18,7 @@ from .integrator_specs import IntegratorSpec, check_compatible, parse_integrator
 from .systems import PreparedSystem, load_definition, prepare_system
 
 DEFAULT_SYSTEM = "tip3p-3nm"
-DEFAULT_INTEGRATORS = ("rattle", "energy", "alpha=1/6", "verlet")
+DEFAULT_INTEGRATORS = ("rattle", "energy", "energy4", "alpha4=0", "verlet")
 COMPARISON_FILE = "comparison.json"
 FIGURE_FILE = "energy_residuals.png"
 

@@ -13,7 +13,7 @@ from quick_systems import StopAt, quick_system
 from openmm_alphaprk import rundir
 from openmm_alphaprk.compare import compare
 from openmm_alphaprk.driver import RunFailedError, run_nve
-from openmm_alphaprk.integrator_specs import UnknownIntegratorError, parse_integrator
+from openmm_alphaprk.integrator_specs import UnknownIntegratorError, make_integrator, parse_integrator
 from openmm_alphaprk.rundir import RunDirectoryError
 from openmm_alphaprk.systems import UnknownSystemError
 
@@ -43,8 +43,12 @@ def test_integrator_names():
     assert parse_integrator("alpha=1/6").alpha == pytest.approx(1 / 6)
     assert parse_integrator(" Alpha = 0.5 ").alpha == 0.5
     assert parse_integrator("RATTLE").kind == "rattle"
-    for bad in ("alpha=", "alpha=x", "alpha=1/0", "leapfrog", "alpha=nan"):
-        with pytest.raises(UnknownIntegratorError, match="rattle, verlet, energy, alpha=<number>"):
+    assert (parse_integrator("energy4").kind, parse_integrator("energy4").order) == ("energy", 4)
+    assert (parse_integrator("alpha4=0").alpha, parse_integrator("alpha4=0").order) == (0.0, 4)
+    assert make_integrator("energy4", 0.002).order == 4
+    assert make_integrator("alpha4=1/10", 0.002).alpha == pytest.approx(0.1)
+    for bad in ("alpha=", "alpha=x", "alpha=1/0", "leapfrog", "alpha=nan", "alpha5=1", "energy2"):
+        with pytest.raises(UnknownIntegratorError, match="rattle, verlet, energy, energy4, alpha=<number>"):
             parse_integrator(bad)
 
 
