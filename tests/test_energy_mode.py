@@ -122,8 +122,9 @@ def test_controller_recovers_from_a_bad_starting_alpha():
     assert np.sqrt(np.mean(bad_residuals[10:] ** 2)) < 2 * np.sqrt(np.mean(normal_residuals[10:] ** 2)) + 0.01
 
 
-def test_checkpoint_and_xml_restarts_continue_the_same_trajectory(water_box):
-    integrator = AlphaRattleIntegrator(0.002, alpha="energy")
+@pytest.mark.parametrize("order", [2, 4])
+def test_checkpoint_and_xml_restarts_continue_the_same_trajectory(water_box, order):
+    integrator = AlphaRattleIntegrator(0.002, alpha="energy", order=order)
     ctx = make_context(water_box.system, integrator, water_box.positions, water_box.velocities)
     integrator.step(3)
     checkpoint = ctx.createCheckpoint()
@@ -132,7 +133,7 @@ def test_checkpoint_and_xml_restarts_continue_the_same_trajectory(water_box):
     integrator.step(3)
     expected = positions_of(ctx), integrator.alpha, integrator.reference_energy, integrator.energy_residual
 
-    fresh = AlphaRattleIntegrator(0.002, alpha="energy")
+    fresh = AlphaRattleIntegrator(0.002, alpha="energy", order=order)
     ctx2 = mm.Context(water_box.system, fresh, REFERENCE)
     ctx2.loadCheckpoint(checkpoint)
     fresh.step(3)
