@@ -62,9 +62,8 @@ def main() -> None:
         print(f"{label:28s} slope {np.polyfit(np.log(hs), np.log(errors), 1)[0]:.2f}")
     for label, largest in largest_alpha.items():
         ratios = largest[:-1] / largest[1:]
-        print(
-            f"{label:28s} max|α*| {np.array2string(largest, precision=3)}  ratio per halving {np.round(ratios, 2)}"
-        )
+        values = np.array2string(largest, precision=3)
+        print(f"{label:28s} max|α*| {values}  ratio per halving {np.round(ratios, 2)}")
 
     FIGURES.mkdir(exist_ok=True)
     fig, ax = plt.subplots(figsize=(6, 4.5))
@@ -79,7 +78,8 @@ def main() -> None:
     fig, ax = plt.subplots(figsize=(6, 4.5))
     for label, largest in largest_alpha.items():
         ax.loglog(hs, largest, "o-", label=label)
-    ax.loglog(hs, largest_alpha["α-RATTLE-4 energy mode"][0] * (hs / hs[0]) ** 2, "k--", lw=0.8, label="∝ h²")
+    guide = largest_alpha["α-RATTLE-4 energy mode"][0] * (hs / hs[0]) ** 2
+    ax.loglog(hs, guide, "k--", lw=0.8, label="∝ h²")
     ax.set_xlabel("step h")
     ax.set_ylabel("max |α*| over the run")
     ax.set_title("Size of α* in the energy mode")
