@@ -332,6 +332,10 @@ class AlphaRattleIntegrator(_EnergyModeProgram, _ConstrainedVerletBase):
                 to_dimensionless(alpha_probe, "alpha_probe", positive=True),
                 to_dimensionless(slope_damping, "slope_damping"),
             )
+            if energy_settings[-1] < 0:
+                raise ValueError(
+                    f"slope_damping must be >= 0 (0 turns the damping off), got {slope_damping}."
+                )
             if midpoint_tolerance is None:
                 midpoint_tolerance = defaults.midpoint_tolerance
         else:

@@ -230,6 +230,8 @@ def test_controller_reporter_writes_every_step_as_it_goes(water_box, tmp_path):
         ({"alpha": "energy", "max_trials": 0}, ValueError, "positive integer"),
         ({"alpha": "energy", "max_alpha_change": 0}, ValueError, "max_alpha_change must be positive"),
         ({"alpha": "energy", "alpha_probe": -0.1}, ValueError, "alpha_probe must be positive"),
+        ({"alpha": "energy", "slope_damping": -0.5}, ValueError, "slope_damping must be >= 0"),
+        ({"alpha": "energy", "order": 4, "alpha_bounds": (0.3, 0.1)}, ValueError, "low < high"),
     ],
 )
 def test_bad_energy_mode_settings_give_clear_errors(kwargs, error, match):
