@@ -48,8 +48,12 @@ def default_integrators(timestep: float) -> dict[str, Callable[[], mm.Integrator
     }
 
 
-def _context(box: WaterBox, integrator: mm.Integrator, platform: mm.Platform, tolerance: float) -> mm.Context:
-    integrator.setConstraintTolerance(tolerance)
+def _context(
+    box: WaterBox, integrator: mm.Integrator, platform: mm.Platform, tolerance: float | None = None
+) -> mm.Context:
+    """Make a context at the box's state; ``tolerance`` (if given) sets the constraint tolerance."""
+    if tolerance is not None:
+        integrator.setConstraintTolerance(tolerance)
     context = mm.Context(box.system, integrator, platform)
     context.setPositions(box.positions)
     context.setVelocities(box.velocities)

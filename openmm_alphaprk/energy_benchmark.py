@@ -29,6 +29,7 @@ import openmm as mm
 import openmm.unit as unit
 from tqdm import tqdm
 
+from .benchmark import _context, _total_energy
 from .integrators import AlphaRattleIntegrator, RattleIntegrator
 from .waterbox import WaterBox, build_water_box
 
@@ -98,18 +99,6 @@ def drift_per_dof(times_ps: np.ndarray, residuals: np.ndarray, dof: int) -> floa
     """Slope of a least-squares line through H(t), in kJ/mol/ns per degree of freedom."""
     slope_per_ps = np.polyfit(times_ps, residuals, 1)[0]
     return float(slope_per_ps * 1000.0 / dof)
-
-
-def _context(box: WaterBox, integrator: mm.Integrator, platform: mm.Platform) -> mm.Context:
-    context = mm.Context(box.system, integrator, platform)
-    context.setPositions(box.positions)
-    context.setVelocities(box.velocities)
-    return context
-
-
-def _total_energy(context: mm.Context) -> float:
-    state = context.getState(getEnergy=True)
-    return (state.getPotentialEnergy() + state.getKineticEnergy()).value_in_unit(unit.kilojoules_per_mole)
 
 
 def _run_one(

@@ -251,14 +251,7 @@ class _EnergyModeProgram:
         self._add_reset_constraint_reference()
         self._add_position_solve(self._FIRST_FORCES, h)
         self.addComputePerDof("x1", "x")
-        self.addComputePerDof("x", "0.5*(x0 + x1)")
-        self.addComputePerDof("fmid", "f")
-        self._add_count_force_evaluation()
-        self._add_reset_constraint_reference()
-        self._add_position_solve(self._FIRST_FORCES, h)
-        self.addComputeSum("sum_change2", "(x - x1)^2")
-        self.addComputeGlobal("midpoint_change", "sqrt(sum_change2/ndof)")
-        self.addComputePerDof("x1", "x")
+        self._add_midpoint_pass(h)
 
     def _add_trial_residual(self) -> None:
         """Set the residual U(x) + K(v) − E_ref of the state the trial ended in."""

@@ -443,15 +443,8 @@ class AlphaRattleIntegrator(_EnergyModeProgram, _ConstrainedVerletBase):
         self.addComputeGlobal("iterate_midpoint", "(1 - delta(alpha))*step(max_midpoint_iterations - 0.5)")
         self.addComputeGlobal("midpoint_change", "1e30*(1 - delta(alpha))")
         self.beginWhileBlock("iterate_midpoint > 0.5")
-        self.addComputePerDof("x", "0.5*(x0 + x1)")
-        self.addComputePerDof("fmid", "f")
-        self._add_count_force_evaluation()
-        self._add_reset_constraint_reference()
-        self._add_position_solve(self._FIRST_FORCES, h)
-        self.addComputeSum("sum_change2", "(x - x1)^2")
         self.addComputeGlobal("previous_midpoint_change", "midpoint_change")
-        self.addComputeGlobal("midpoint_change", "sqrt(sum_change2/ndof)")
-        self.addComputePerDof("x1", "x")
+        self._add_midpoint_pass(h)
         self.addComputeGlobal("midpoint_iterations", "midpoint_iterations + 1")
         self.addComputeGlobal(
             "iterate_midpoint",
@@ -460,6 +453,20 @@ class AlphaRattleIntegrator(_EnergyModeProgram, _ConstrainedVerletBase):
             "*(1 - step(midpoint_change - previous_midpoint_change))",
         )
         self.endBlock()
+
+    def _add_midpoint_pass(self, h: str = "dt") -> None:
+        """F at the midpoint of (x0, x1), then x1 solved again with it (one force evaluation).
+
+        Leaves x = x1 and ``midpoint_change`` = RMS change of x1 per degree of freedom.
+        """
+        self.addComputePerDof("x", "0.5*(x0 + x1)")
+        self.addComputePerDof("fmid", "f")
+        self._add_count_force_evaluation()
+        self._add_reset_constraint_reference()
+        self._add_position_solve(self._FIRST_FORCES, h)
+        self.addComputeSum("sum_change2", "(x - x1)^2")
+        self.addComputeGlobal("midpoint_change", "sqrt(sum_change2/ndof)")
+        self.addComputePerDof("x1", "x")
 
     def _add_reject_unconverged_step(self) -> None:
         """If the last change of x1 exceeds max(1000 × tolerance, 1e-8 nm) or is NaN, stay at x0.
