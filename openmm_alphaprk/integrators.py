@@ -258,7 +258,7 @@ class AlphaRattleIntegrator(_EnergyModeProgram, _ConstrainedVerletBase):
         Cap on midpoint force evaluations per step (in the energy mode: on trials,
         each two (order 2) or three (order 4) force evaluations).
     alpha_bounds
-        Energy mode: the interval (low, high) α* is kept in; default (−1, 3) at
+        Energy mode: the interval (low, high) α* is kept in; default (−0.5, 1.5) at
         order 2, (−0.2, 0.2) at order 4.
     energy_tolerance
         Energy mode: target |H − E_ref| after each step (Quantity or kJ/mol; default
@@ -284,7 +284,8 @@ class AlphaRattleIntegrator(_EnergyModeProgram, _ConstrainedVerletBase):
         γ2 = 1 − 2γ1 (design doc §8): fourth order at α = 0 (three force
         evaluations per step), second order at a fixed α ≠ 0, and fourth order
         again in the energy mode, where α* = O(h²). Its sub-steps are 1.35h, −1.70h
-        and 1.35h, so its largest stable step is below RATTLE's.
+        and 1.35h (a scan on a water box found it, like RATTLE, stable up to 5 fs,
+        the largest step scanned).
 
     Notes
     -----
