@@ -165,12 +165,8 @@ def format_table(rows: Sequence[BenchmarkRow], header: str = "") -> str:
     return "\n".join(lines)
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Command-line entry point."""
-    parser = argparse.ArgumentParser(
-        prog="python -m openmm_alphaprk.benchmark",
-        description="Time RATTLE and α-RATTLE against VerletIntegrator on a TIP3P water box (PME).",
-    )
+def add_box_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the water-box options both benchmark commands share (--box, --cutoff, --timestep, --platform)."""
     parser.add_argument(
         "--box", type=float, default=3.0, help="cubic box edge in nm (default 3.0: ~2,600 atoms)"
     )
@@ -179,6 +175,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     parser.add_argument("--timestep", type=float, default=2.0, help="step size in fs (default 2)")
     parser.add_argument("--platform", default="CPU", help="OpenMM platform (default CPU)")
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Command-line entry point."""
+    parser = argparse.ArgumentParser(
+        prog="python -m openmm_alphaprk.benchmark",
+        description="Time RATTLE and α-RATTLE against VerletIntegrator on a TIP3P water box (PME).",
+    )
+    add_box_arguments(parser)
     parser.add_argument(
         "--steps", type=int, default=100, help="timed steps per integrator per round (default 100)"
     )

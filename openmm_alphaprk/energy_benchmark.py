@@ -29,7 +29,7 @@ import openmm as mm
 import openmm.unit as unit
 from tqdm import tqdm
 
-from .benchmark import _context, _total_energy
+from .benchmark import _context, _total_energy, add_box_arguments
 from .integrators import AlphaRattleIntegrator, RattleIntegrator
 from .waterbox import WaterBox, build_water_box
 
@@ -322,14 +322,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             "Energy drift and fluctuation of α-RATTLE's energy mode against RATTLE (TIP3P box, PME, NVE)."
         ),
     )
-    parser.add_argument(
-        "--box", type=float, default=3.0, help="cubic box edge in nm (default 3.0: ~2,600 atoms)"
-    )
-    parser.add_argument(
-        "--cutoff", type=float, default=0.9, help="PME direct-space cutoff in nm (default 0.9)"
-    )
-    parser.add_argument("--timestep", type=float, default=2.0, help="step size in fs (default 2)")
-    parser.add_argument("--platform", default="CPU", help="OpenMM platform (default CPU)")
+    add_box_arguments(parser)
     parser.add_argument(
         "--time", type=float, default=20.0, help="simulated time per integrator in ps (default 20)"
     )
