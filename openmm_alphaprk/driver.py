@@ -29,7 +29,12 @@ from .analysis.energy import EnergyDrift, energy_drift
 from .energy_benchmark import degrees_of_freedom
 from .integrator_specs import IntegratorSpec, check_compatible, make_integrator, parse_integrator
 from .integrators import _ConstrainedVerletBase
-from .reporters import AlphaControllerReporter, read_controller_csv, summarize_controller
+from .reporters import (
+    AlphaControllerReporter,
+    VelocityDCDReporter,
+    read_controller_csv,
+    summarize_controller,
+)
 from .systems import PreparedSystem, prepare_system
 
 PRECISIONS = ("single", "mixed", "double")
@@ -83,8 +88,15 @@ def run_parameters(
     energy_interval: int,
     trajectory_interval: int,
     checkpoint_interval: int,
+    velocity_interval: int | None = None,
+    velocity_seed: int | None = None,
 ) -> dict:
-    """Return the parameters stored in ``run.json``; a directory with other values holds a different run."""
+    """Return the parameters stored in ``run.json``; a directory with other values holds a different run.
+
+    ``velocity_interval`` and ``velocity_seed`` are stored only when set, so run
+    directories written before they existed stay valid.
+    """
+    optional = {"velocity_interval": velocity_interval, "velocity_seed": velocity_seed}
     return {
         "format": rundir.RUN_FORMAT,
         "system": prepared.name,
@@ -98,7 +110,7 @@ def run_parameters(
         "energy_interval": energy_interval,
         "trajectory_interval": trajectory_interval,
         "checkpoint_interval": checkpoint_interval,
-    }
+    } | {key: value for key, value in optional.items() if value is not None}
 
 
 def run_nve(
@@ -114,6 +126,9 @@ def run_nve(
     energy_interval: int = 10,
     trajectory_interval: int = 100,
     checkpoint_interval: int = 500,
+    velocity_interval: int | None = None,
+    velocity_seed: int | None = None,
+    cpu_threads: int | None = None,
     cache_dir: str | os.PathLike | None = None,
     progress: bool = True,
     extra_reporters: list | None = None,
@@ -146,6 +161,17 @@ def run_nve(
         Steps between energy rows, DCD frames and checkpoints. Energies cost one extra
         force evaluation each on most platforms; the energy mode's controller CSV is
         written every step (free).
+    velocity_interval
+        Steps between frames of ``velocities.dcd`` (velocities in Å/ps stored as DCD
+        coordinates, see :class:`~openmm_alphaprk.reporters.VelocityDCDReporter`); None
+        (default) writes none.
+    velocity_seed
+        None (default): start from the prepared state's velocities. An integer: draw new
+        Maxwell–Boltzmann velocities at the definition's temperature with this seed
+        (constrained components removed), for independent runs from the same structure.
+    cpu_threads
+        Threads of the CPU platform (default: OpenMM's choice, all cores); not part of
+        the run's identity.
     cache_dir
         Cache of equilibrated systems (default: see :func:`~openmm_alphaprk.systems.default_cache_dir`).
     progress
@@ -179,8 +205,16 @@ def run_nve(
             ("checkpoint_interval", checkpoint_interval),
         )
     }
+    if velocity_interval is not None:
+        intervals["velocity_interval"] = _positive_int(velocity_interval, "velocity_interval")
+    if velocity_seed is not None and (isinstance(velocity_seed, bool) or not isinstance(velocity_seed, int)):
+        raise ValueError(f"velocity_seed must be an integer or None, got {velocity_seed!r}.")
     tolerance = to_dimensionless(constraint_tolerance, "constraint_tolerance", positive=True)
     plat, properties = _platform(platform, precision)
+    if cpu_threads is not None:
+        if platform != "CPU":
+            raise ValueError(f"cpu_threads applies to the CPU platform only, not {platform}; leave it unset.")
+        properties["Threads"] = str(_positive_int(cpu_threads, "cpu_threads"))
     if not isinstance(system, PreparedSystem):
         from .systems import load_definition
 
@@ -204,6 +238,7 @@ def run_nve(
         platform=platform,
         precision=precision,
         constraint_tolerance=tolerance,
+        velocity_seed=velocity_seed,
         **intervals,
     )
     stored = rundir.check_run_directory(output, parameters)
@@ -214,6 +249,8 @@ def run_nve(
             rundir.ENERGIES_FILE,
             rundir.CONTROLLER_FILE,
             rundir.TRAJECTORY_FILE,
+            rundir.VELOCITIES_FILE,
+            rundir.START_STATE_FILE,
             rundir.SUMMARY_FILE,
         ):
             (output / name).unlink(missing_ok=True)
@@ -232,8 +269,16 @@ def run_nve(
         rundir.truncate_csv(output / rundir.ENERGIES_FILE, start_step)
         rundir.truncate_csv(output / rundir.CONTROLLER_FILE, start_step)
         rundir.truncate_dcd(output / rundir.TRAJECTORY_FILE, start_step // intervals["trajectory_interval"])
+        if "velocity_interval" in intervals:
+            rundir.truncate_dcd(output / rundir.VELOCITIES_FILE, start_step // intervals["velocity_interval"])
     else:
         simulation.context.setState(prepared.state)
+        if velocity_seed is not None:
+            kelvin = float(prepared.definition.equilibration["temperature_K"])
+            simulation.context.setVelocitiesToTemperature(kelvin * unit.kelvin, velocity_seed)
+            simulation.context.applyVelocityConstraints(tolerance)
+            start = simulation.context.getState(getPositions=True, getVelocities=True)
+            (output / rundir.START_STATE_FILE).write_text(mm.XmlSerializer.serialize(start))
         simulation.context.setStepCount(0)
         simulation.context.setTime(0.0)
         start_step = 0
@@ -280,6 +325,12 @@ def _reporters(output: Path, spec: IntegratorSpec, intervals: dict, append: bool
             enforcePeriodicBox=False,
         )
     )
+    if "velocity_interval" in intervals:
+        reporters.append(
+            VelocityDCDReporter(
+                str(output / rundir.VELOCITIES_FILE), intervals["velocity_interval"], append=append
+            )
+        )
     reporters.append(
         app.CheckpointReporter(str(output / rundir.CHECKPOINT_FILE), intervals["checkpoint_interval"])
     )
@@ -353,7 +404,7 @@ def summarize(
         )
     momentum_change = {}
     if not prepared.system.usesPeriodicBoundaryConditions():  # isolated: P and L are invariants
-        momentum_change = _momentum_change(prepared, state)
+        momentum_change = _momentum_change(prepared, state, output)
     controller = {}
     if spec.kind == "energy":
         controller = summarize_controller(read_controller_csv(output / rundir.CONTROLLER_FILE)).as_dict()
@@ -418,9 +469,15 @@ def _momenta(system: mm.System, state: mm.State) -> tuple[np.ndarray, np.ndarray
     return (m[:, None] * v).sum(0), (m[:, None] * np.cross(x, v)).sum(0)
 
 
-def _momentum_change(prepared: PreparedSystem, final: mm.State) -> dict:
-    """Max component of the change of linear and angular momentum from the start state to ``final``."""
-    p0, l0 = _momenta(prepared.system, prepared.state)
+def _momentum_change(prepared: PreparedSystem, final: mm.State, output: Path) -> dict:
+    """Max component of the change of linear and angular momentum from the start state to ``final``.
+
+    The start state is the prepared one, or the run's ``start_state.xml`` when its
+    velocities were drawn anew (``velocity_seed``).
+    """
+    start_file = output / rundir.START_STATE_FILE
+    start = mm.XmlSerializer.deserialize(start_file.read_text()) if start_file.is_file() else prepared.state
+    p0, l0 = _momenta(prepared.system, start)
     p1, l1 = _momenta(prepared.system, final)
     return {
         "linear_amu_nm_per_ps": float(np.abs(p1 - p0).max()),

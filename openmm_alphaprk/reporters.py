@@ -183,3 +183,70 @@ def summarize_controller(rows: np.ndarray, energy_tolerance: float | None = None
         fraction_at_bound=float(np.mean(rows[:, 8])),
         force_evaluations_per_step=float(np.mean(rows[:, 6])),
     )
+
+
+class VelocityDCDReporter:
+    """Write atom velocities to a DCD file as the run goes (for velocity autocorrelations).
+
+    OpenMM's ``DCDReporter`` writes positions only. This reporter writes each frame's
+    velocities through OpenMM's own ``app.DCDFile`` in place of positions; the file then
+    holds **velocities in Å/ps** where a DCD holds coordinates in Å, and MDAnalysis reads
+    them back as ``Universe(topology, file).atoms.positions`` (see
+    :class:`~openmm_alphaprk.analysis.VelocityAutocorrelation`, ``source="positions"``).
+    Frames are written at steps that are multiples of ``reportInterval``, as by
+    ``DCDReporter``, and the file is flushed after each.
+
+    Parameters
+    ----------
+    file
+        Path of the DCD file.
+    reportInterval
+        Steps between frames.
+    append
+        Append to an existing file written by this reporter (for a resumed run).
+
+    Raises
+    ------
+    ValueError
+        From ``report``, if a velocity is not finite (fail fast on NaN).
+    """
+
+    def __init__(self, file: str | os.PathLike, reportInterval: int, append: bool = False):
+        if isinstance(reportInterval, bool) or int(reportInterval) != reportInterval or reportInterval < 1:
+            raise ValueError(f"reportInterval must be a positive integer, got {reportInterval!r}.")
+        self._path = os.fspath(file)
+        self._interval = int(reportInterval)
+        self._append = append
+        self._handle = None
+        self._dcd = None
+
+    def describeNextReport(self, simulation: app.Simulation) -> dict:
+        steps = self._interval - simulation.currentStep % self._interval
+        return {"steps": steps, "periodic": None, "include": ["velocities"]}
+
+    def report(self, simulation: app.Simulation, state) -> None:
+        import openmm.unit as unit
+
+        velocities = state.getVelocities(asNumpy=True).value_in_unit(unit.nanometers / unit.picoseconds)
+        if not np.all(np.isfinite(velocities)):
+            raise ValueError(
+                f"non-finite velocity at step {simulation.currentStep}: the simulation has blown up; "
+                "use a smaller step size."
+            )
+        if self._dcd is None:
+            self._handle = open(self._path, "r+b" if self._append else "wb")
+            self._dcd = app.DCDFile(
+                self._handle,
+                simulation.topology,
+                simulation.integrator.getStepSize(),
+                simulation.currentStep,
+                self._interval,
+                self._append,
+            )
+        # Velocities (nm/ps) typed as nm: DCDFile stores them ×10, i.e. in Å/ps.
+        self._dcd.writeModel(unit.Quantity(velocities, unit.nanometers))
+        self._handle.flush()
+
+    def __del__(self):
+        if self._handle is not None:
+            self._handle.close()

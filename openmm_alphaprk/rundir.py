@@ -7,6 +7,8 @@ A run directory holds::
     energies.csv     StateDataReporter rows: step, time, potential, kinetic, total energy, temperature
     controller.csv   energy mode only: AlphaControllerReporter rows, every step
     trajectory.dcd   DCDReporter frames (unwrapped coordinates) every trajectory_interval steps
+    velocities.dcd   optional: velocities (Å/ps, stored as DCD coordinates) every velocity_interval steps
+    start_state.xml  with velocity_seed: the start State (XmlSerializer) with the new velocities
     checkpoint.chk   the last checkpoint (OpenMM binary, platform-specific)
     summary.json     written when the run is complete
 
@@ -30,6 +32,8 @@ PARAMETERS_FILE = "run.json"
 ENERGIES_FILE = "energies.csv"
 CONTROLLER_FILE = "controller.csv"
 TRAJECTORY_FILE = "trajectory.dcd"
+VELOCITIES_FILE = "velocities.dcd"
+START_STATE_FILE = "start_state.xml"
 CHECKPOINT_FILE = "checkpoint.chk"
 SUMMARY_FILE = "summary.json"
 SYSTEM_FILE = "system.xml"
@@ -63,10 +67,11 @@ def check_run_directory(path: Path, parameters: dict[str, Any]) -> dict[str, Any
             "directory. Choose a new or empty directory."
         )
     stored = json.loads(stored_file.read_text())
+    keys = list(parameters) + [key for key in stored if key not in parameters]
     differences = [
-        f"{key}: stored {stored.get(key)!r}, requested {value!r}"
-        for key, value in parameters.items()
-        if key not in _MAY_DIFFER and not _same(stored.get(key), value)
+        f"{key}: stored {stored.get(key)!r}, requested {parameters.get(key)!r}"
+        for key in keys
+        if key not in _MAY_DIFFER and not _same(stored.get(key), parameters.get(key))
     ]
     if differences:
         raise RunDirectoryError(

@@ -63,20 +63,32 @@ def test_alpha_zero_gives_rattle_energies(box, tmp_path):
     assert alpha0.rms_residual == pytest.approx(rattle.rms_residual, abs=1e-9)
 
 
-@pytest.mark.parametrize("system, integrator", [("box", "rattle"), ("cluster", "energy")])
-def test_interrupted_run_resumes_to_the_uninterrupted_result(request, tmp_path, system, integrator):
+@pytest.mark.parametrize(
+    "system, integrator, extra",
+    [
+        ("box", "rattle", {}),
+        ("cluster", "energy", {}),
+        ("cluster", "rattle", {"velocity_interval": 3, "velocity_seed": 11}),
+    ],
+)
+def test_interrupted_run_resumes_to_the_uninterrupted_result(request, tmp_path, system, integrator, extra):
     """On the Reference platform (deterministic); the energy mode keeps E_ref over the restart."""
     prepared = request.getfixturevalue(system)
     whole, parts = tmp_path / "whole", tmp_path / "parts"
-    run_nve(prepared, integrator, whole, steps=30, **REFERENCE_RUN)
+    run_nve(prepared, integrator, whole, steps=30, **REFERENCE_RUN, **extra)
     with pytest.raises(KeyboardInterrupt):
-        run_nve(prepared, integrator, parts, steps=30, extra_reporters=[StopAt(17)], **REFERENCE_RUN)
+        run_nve(prepared, integrator, parts, steps=30, extra_reporters=[StopAt(17)], **REFERENCE_RUN, **extra)
     assert not (parts / rundir.SUMMARY_FILE).exists()
     # what the interrupted run left is readable, and goes past its last checkpoint (step 10)
     assert rundir.read_energies(parts / rundir.ENERGIES_FILE)[-1, 0] == 16
     assert len(mda.Universe(str(parts / "topology.pdb"), str(parts / "trajectory.dcd")).trajectory) == 4
-    summary = run_nve(prepared, integrator, parts, steps=30, **REFERENCE_RUN)
+    summary = run_nve(prepared, integrator, parts, steps=30, **REFERENCE_RUN, **extra)
     assert summary.steps == 30 and summary.steps_this_call == 20
+    if "velocity_interval" in extra:  # velocities.dcd cut back to the checkpoint, then continued
+        v_whole = mda.Universe(str(whole / "topology.pdb"), str(whole / rundir.VELOCITIES_FILE))
+        v_parts = mda.Universe(str(parts / "topology.pdb"), str(parts / rundir.VELOCITIES_FILE))
+        assert len(v_parts.trajectory) == len(v_whole.trajectory) == 10
+        np.testing.assert_array_equal(v_parts.trajectory.timeseries(), v_whole.trajectory.timeseries())
     for name in (rundir.ENERGIES_FILE, rundir.CONTROLLER_FILE):
         if (whole / name).exists():
             assert (parts / name).read_text() == (whole / name).read_text()
@@ -164,3 +176,53 @@ def test_isolated_cluster_keeps_momenta(cluster, tmp_path):
         summary = run_nve(cluster, integrator, tmp_path / integrator, steps=40, **REFERENCE_RUN)
         assert summary.momentum_change["linear_amu_nm_per_ps"] < 1e-9
         assert summary.momentum_change["angular_amu_nm2_per_ps"] < 1e-8
+
+
+def test_velocities_file_and_seeded_start(cluster, tmp_path):
+    """velocities.dcd holds the State's velocities in Å/ps; a seed draws new, constrained velocities."""
+    import openmm as mm
+
+    from openmm_alphaprk.driver import constraint_errors
+
+    run = dict(REFERENCE_RUN, steps=12, velocity_interval=4)
+    first = run_nve(cluster, "rattle", tmp_path / "a", velocity_seed=3, **run)
+    again = run_nve(cluster, "rattle", tmp_path / "b", velocity_seed=3, **run)
+    other = run_nve(cluster, "rattle", tmp_path / "c", velocity_seed=4, **run)
+    plain = run_nve(cluster, "rattle", tmp_path / "d", **run)
+    assert first.e_ref == again.e_ref and first.e_ref != other.e_ref and first.e_ref != plain.e_ref
+    start = mm.XmlSerializer.deserialize((tmp_path / "a" / rundir.START_STATE_FILE).read_text())
+    v0 = start.getVelocities(asNumpy=True).value_in_unit(unit.nanometers / unit.picoseconds)
+    x0 = start.getPositions(asNumpy=True).value_in_unit(unit.nanometers)
+    assert constraint_errors(cluster.system, x0, v0)[1] < 1e-6  # constrained components removed
+    kinetic = 0.5 * sum(
+        cluster.system.getParticleMass(i).value_in_unit(unit.dalton) * float(v0[i] @ v0[i])
+        for i in range(len(v0))
+    )
+    dof = 3 * len(v0) - cluster.system.getNumConstraints()
+    assert (
+        200
+        < 2 * kinetic / (dof * unit.MOLAR_GAS_CONSTANT_R.value_in_unit(unit.kilojoule_per_mole / unit.kelvin))
+        < 400
+    )
+    # momenta are compared with the seeded start, not with the prepared state's velocities
+    assert first.momentum_change["linear_amu_nm_per_ps"] < 1e-9
+    assert not (tmp_path / "d" / rundir.START_STATE_FILE).exists()
+    u = mda.Universe(str(tmp_path / "a" / "topology.pdb"), str(tmp_path / "a" / rundir.VELOCITIES_FILE))
+    assert len(u.trajectory) == 3 and u.trajectory.dt == pytest.approx(0.008, rel=1e-6)
+    u.trajectory[-1]  # the last frame (step 12) is the last checkpoint's velocities, ×10 (Å/ps)
+    np.testing.assert_allclose(
+        u.atoms.positions / 10.0, _final_velocities(cluster, tmp_path / "a"), atol=1e-5
+    )
+
+
+def _final_velocities(prepared, directory):
+    """Velocities (nm/ps) of the run's last checkpoint, read through an OpenMM Simulation."""
+    import openmm as mm
+    import openmm.app as app
+
+    integrator = make_integrator("rattle", 0.002)
+    platform = mm.Platform.getPlatformByName("Reference")
+    simulation = app.Simulation(prepared.topology, prepared.system, integrator, platform)
+    simulation.loadCheckpoint(str(directory / rundir.CHECKPOINT_FILE))
+    state = simulation.context.getState(getVelocities=True)
+    return state.getVelocities(asNumpy=True).value_in_unit(unit.nanometers / unit.picoseconds)
