@@ -521,7 +521,7 @@ def run_sweep(
             None
             if address
             else LocalCluster(
-                n_workers=workers, threads_per_worker=1, processes=processes, dashboard_address=None
+                n_workers=workers, threads_per_worker=1, processes=processes, dashboard_address=":0"
             )
         )
         started = time.perf_counter()
