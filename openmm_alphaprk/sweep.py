@@ -381,20 +381,18 @@ def _cell_row(cell: Cell, directory: Path) -> dict[str, Any]:
     }
 
 
-def _flatten(summary: dict[str, Any]) -> dict[str, Any]:
-    """Summary fields as table columns: dicts become ``name.key`` columns, lists are joined."""
+def _flatten(summary: dict[str, Any], prefix: str = "") -> dict[str, Any]:
+    """Summary fields as table columns: nested dicts become ``name.key`` columns, lists are joined."""
     flat: dict[str, Any] = {}
     for key, value in summary.items():
-        if key in ("system", "integrator", "steps"):
+        if not prefix and key in ("system", "integrator", "steps"):
             continue
         if isinstance(value, dict):
-            for inner, item in value.items():
-                if not isinstance(item, (dict, list)):
-                    flat[f"{key}.{inner}"] = item
+            flat |= _flatten(value, f"{prefix}{key}.")
         elif isinstance(value, list):
-            flat[key] = " | ".join(map(str, value))
+            flat[prefix + key] = " | ".join(map(str, value))
         else:
-            flat[key] = value
+            flat[prefix + key] = value
     return flat
 
 
