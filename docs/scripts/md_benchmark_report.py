@@ -185,10 +185,57 @@ def compare_dynamics(run: dict, reference: dict) -> dict:
     return out
 
 
+# ---------------------------------------------------------------- timing
+
+
+def timing_table(system: str, steps: int = 30, rounds: int = 3) -> dict[str, dict]:
+    """Time every integrator of the energy table on one system in interleaved rounds (this process).
+
+    The sweep's cells ran one after another, each timing itself, while other work may have
+    shared the machine; interleaving the integrators round by round puts such load on all
+    of them alike, so the ratios to RATTLE 2 fs are the numbers to read. Median ms/step of
+    ``rounds`` rounds of ``steps`` steps from the equilibrated start, CPU platform.
+    """
+    import statistics
+    import time
+
+    import openmm as mm
+
+    from openmm_alphaprk.integrator_specs import make_integrator
+    from openmm_alphaprk.systems import prepare_system
+
+    prepared = prepare_system(system, progress=False)
+    platform = mm.Platform.getPlatformByName("CPU")
+    runs = {}
+    for integrator_name, step in ENERGY_ROWS:
+        integrator = make_integrator(integrator_name, step / 1000.0, 1e-8)
+        context = mm.Context(prepared.system, integrator, platform)
+        context.setState(prepared.state)
+        integrator.step(2)  # program analysis, first forces
+        runs[label(integrator_name, step)] = (integrator, context, step)
+    times: dict[str, list[float]] = {name: [] for name in runs}
+    for _ in range(rounds):
+        for name, (integrator, _context, _step) in runs.items():
+            start = time.perf_counter()
+            integrator.step(steps)
+            times[name].append((time.perf_counter() - start) / steps * 1e3)
+    baseline = statistics.median(times[label("rattle", 2.0)])
+    table = {}
+    for name, (_integrator, _context, step) in runs.items():
+        ms = statistics.median(times[name])
+        table[name] = {
+            "ms_per_step": ms,
+            "time_per_step_ratio": ms / baseline,
+            "time_per_ps_ratio": ms / baseline * 2.0 / step,
+            "ns_per_day": step * 1e-6 / (ms * 1e-3) * 86400.0,
+        }
+    return table
+
+
 # ---------------------------------------------------------------- tables
 
 
-def energy_table(rows, system: str) -> list[dict]:
+def energy_table(rows, system: str, timing: dict[str, dict]) -> list[dict]:
     """Energy, cost and controller numbers of one system's main runs (start velocities)."""
     base = get(rows, system, "rattle", 2.0)
     if base is None or base["status"] != "ok":
@@ -207,9 +254,9 @@ def energy_table(rows, system: str) -> list[dict]:
         per_step = number(row, "wall_seconds") / number(row, "steps_this_call")
         entry |= {
             "force_evaluations_per_step": number(row, "force_evaluations_per_step"),
-            "time_per_step_ratio": per_step / base_time,
-            "time_per_ps_ratio": per_step / base_time * 2.0 / step,
-            "ns_per_day": number(row, "ns_per_day"),
+            "timing": timing.get(entry["label"], {}),
+            "sweep_time_per_step_ratio": per_step / base_time,
+            "sweep_ns_per_day": number(row, "ns_per_day"),
             "rms_residual": number(row, "rms_residual"),
             "max_abs_residual": number(row, "max_abs_residual"),
             "drift_per_dof": number(row, "drift_per_dof"),
@@ -304,13 +351,13 @@ def energy_markdown(system: str, entries: list[dict]) -> str:
         f"**{system}**: {first.get('n_atoms', '?')} atoms, {first.get('degrees_of_freedom', '?')} DOF, "
         f"{fmt(first.get('simulated_ps', float('nan')))} ps per run, from the same equilibrated start.",
         "",
-        "| integrator | evals/step | time/step ÷ RATTLE 2 fs | time/ps ÷ RATTLE 2 fs | ns/day "
+        "| integrator | evals/step | time/step ÷ RATTLE 2 fs | time/ps ÷ RATTLE 2 fs | ns/day | sweep ns/day "
         "| RMS(H − E_ref) kJ/mol | max | drift kJ/mol/ns/DOF | α* p5/p50/p95 | within tol. | at bound |",
-        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
     ]
     for e in entries:
         if "error" in e:
-            lines.append(f"| {e['label']} | failed: {e['error'][:80]} |" + " |" * 9)
+            lines.append(f"| {e['label']} | failed: {e['error'][:80]} |" + " |" * 10)
             continue
         c = e.get("controller", {})
         alpha = (
@@ -320,9 +367,16 @@ def energy_markdown(system: str, entries: list[dict]) -> str:
         )
         within = f"{100 * c['fraction_within_tolerance']:.0f} %" if "fraction_within_tolerance" in c else "—"
         bound = f"{100 * c['fraction_at_bound']:.1f} %" if "fraction_at_bound" in c else "—"
+        t = {
+            "time_per_step_ratio": float("nan"),
+            "time_per_ps_ratio": float("nan"),
+            "ns_per_day": float("nan"),
+        }
+        t |= e["timing"]
         lines.append(
-            f"| {e['label']} | {e['force_evaluations_per_step']:.2f} | {e['time_per_step_ratio']:.2f} | "
-            f"{e['time_per_ps_ratio']:.2f} | {e['ns_per_day']:.3g} | {fmt(e['rms_residual'])} | "
+            f"| {e['label']} | {e['force_evaluations_per_step']:.2f} | {t['time_per_step_ratio']:.2f} | "
+            f"{t['time_per_ps_ratio']:.2f} | {t['ns_per_day']:.3g} | {e['sweep_ns_per_day']:.3g} | "
+            f"{fmt(e['rms_residual'])} | "
             f"{fmt(e['max_abs_residual'])} | {fmt(e['drift_per_dof'], 2)} | {alpha} | {within} | {bound} |"
         )
     return "\n".join(lines)
@@ -426,6 +480,11 @@ def figures(rows, report: dict) -> list[str]:
     fig, axes = plt.subplots(1, len(systems), figsize=(4.2 * len(systems), 3.8), squeeze=False)
     for ax, system in zip(axes[0], systems):
         entries = [e for e in report["energy"][system] if "error" not in e and e["integrator"] != "verlet"]
+        entries = [
+            e | {"time_per_ps_ratio": e["timing"]["time_per_ps_ratio"]} for e in entries if e["timing"]
+        ]
+        if not entries:  # no timing yet (--no-timing on a first report)
+            continue
         rattle = sorted(
             (e for e in entries if e["integrator"] == "rattle"), key=lambda e: e["time_per_ps_ratio"]
         )
@@ -504,6 +563,9 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--run", action="store_true", help="run the sweep first (finished cells are skipped)")
     parser.add_argument("--workers", type=int, default=None, help="local dask workers for --run")
+    parser.add_argument(
+        "--no-timing", action="store_true", help="skip the interleaved timing (keep the JSON's last timings)"
+    )
     args = parser.parse_args(argv)
     sys.path.insert(0, str(ROOT))
     from openmm_alphaprk.sweep import load_config, run_sweep
@@ -512,9 +574,15 @@ def main(argv: list[str] | None = None) -> int:
     if args.run:
         run_sweep(config, n_workers=args.workers)
     rows = load_rows(config)
-    report = {"energy": {}, "dynamics": {}, "scan": {}, "reference": label(*REFERENCE)}
+    report = {"energy": {}, "dynamics": {}, "scan": {}, "timing": {}, "reference": label(*REFERENCE)}
+    previous = json.loads(JSON_OUT.read_text()).get("timing", {}) if JSON_OUT.is_file() else {}
     for system in SYSTEMS:
-        report["energy"][system] = energy_table(rows, system)
+        if args.no_timing or get(rows, system, "rattle", 2.0) is None:
+            report["timing"][system] = previous.get(system, {})
+        else:
+            print(f"timing {system} (interleaved rounds)", file=sys.stderr)
+            report["timing"][system] = timing_table(system)
+        report["energy"][system] = energy_table(rows, system, report["timing"][system])
         report["dynamics"][system] = dynamics_table(rows, system)
         report["scan"][system] = scan_table(rows, system)
     report["figures"] = figures(rows, report)
