@@ -318,6 +318,8 @@ def scan_table(rows, system: str) -> dict:
             cell["stable"] = False
             cell["error"] = row["error"][:160]
         scan.setdefault(integrator, {})[f"{step:g}"] = cell
+    if not any(float(step) > 2.0 for cells in scan.values() for step in cells):
+        return {}  # no scan cells for this system
     for cells in scan.values():
         steps = sorted(cells, key=float)
         largest = None
@@ -457,7 +459,7 @@ def figures(rows, report: dict) -> list[str]:
     written = []
     FIGURES.mkdir(parents=True, exist_ok=True)
 
-    # 1. H − E_ref against time, one panel per system
+    # 1. H − E_ref against time, one panel per system: RMS over 0.2 ps windows, log scale
     systems = [s for s in SYSTEMS if report["energy"].get(s)]
     fig, axes = plt.subplots(len(systems), 1, figsize=(8, 2.8 * len(systems)), squeeze=False)
     for ax, system in zip(axes[:, 0], systems):
@@ -466,12 +468,19 @@ def figures(rows, report: dict) -> list[str]:
             if row is None or row["status"] != "ok" or integrator == "verlet":
                 continue
             energies = rundir.read_energies(Path(row["run_dir"]) / rundir.ENERGIES_FILE)
-            ax.plot(energies[:, 1], energies[:, 4] - energies[0, 4], lw=0.7, label=label(integrator, step))
+            residual = energies[1:, 4] - energies[0, 4]
+            window = 10  # samples of 20 fs
+            n = residual.size // window * window
+            rms = np.sqrt(np.mean(residual[:n].reshape(-1, window) ** 2, axis=1))
+            times = energies[1 : n + 1, 1].reshape(-1, window).mean(axis=1)
+            ax.plot(times, rms, lw=0.9, label=label(integrator, step))
+        ax.set_yscale("log")
         ax.set_title(system)
-        ax.set_ylabel("H − E_ref (kJ/mol)")
+        ax.set_ylabel("RMS(H − E_ref) per 0.2 ps (kJ/mol)")
     axes[-1, 0].set_xlabel("time (ps)")
-    axes[0, 0].legend(fontsize=7, ncol=3)
-    fig.tight_layout()
+    handles, labels = axes[0, 0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=4, fontsize=7)
+    fig.tight_layout(rect=(0, 0.07, 1, 1))
     fig.savefig(FIGURES / "benchmark_energy.png", dpi=120)
     plt.close(fig)
     written.append("figures/benchmark_energy.png")
@@ -534,6 +543,8 @@ def figures(rows, report: dict) -> list[str]:
 
     # 4. step-size scan
     scans = {s: report["scan"][s] for s in SYSTEMS if report["scan"].get(s)}
+    if not scans:
+        return written
     fig, axes = plt.subplots(1, len(scans), figsize=(4.5 * len(scans), 3.6), squeeze=False)
     for ax, (system, scan) in zip(axes[0], scans.items()):
         for integrator, cells in scan.items():
