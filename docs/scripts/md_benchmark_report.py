@@ -447,6 +447,16 @@ def replace_generated(page: str, name: str, content: str) -> str:
 # ---------------------------------------------------------------- figures
 
 
+def _save(fig, name: str, rect: tuple[float, float, float, float] = (0, 0, 1, 1)) -> str:
+    """Lay out, write and close a figure; return its path relative to docs/."""
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout(rect=rect)
+    fig.savefig(FIGURES / name, dpi=120)
+    plt.close(fig)
+    return f"figures/{name}"
+
+
 def figures(rows, report: dict) -> list[str]:
     """Write the figures; return their paths relative to docs/."""
     import matplotlib
@@ -480,10 +490,7 @@ def figures(rows, report: dict) -> list[str]:
     axes[-1, 0].set_xlabel("time (ps)")
     handles, labels = axes[0, 0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="lower center", ncol=4, fontsize=7)
-    fig.tight_layout(rect=(0, 0.07, 1, 1))
-    fig.savefig(FIGURES / "benchmark_energy.png", dpi=120)
-    plt.close(fig)
-    written.append("figures/benchmark_energy.png")
+    written.append(_save(fig, "benchmark_energy.png", rect=(0, 0.07, 1, 1)))
 
     # 2. accuracy against cost
     fig, axes = plt.subplots(1, len(systems), figsize=(4.2 * len(systems), 3.8), squeeze=False)
@@ -512,10 +519,7 @@ def figures(rows, report: dict) -> list[str]:
         ax.set_ylabel("RMS(H − E_ref) (kJ/mol)")
         ax.set_title(system)
     axes[0, 0].legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(FIGURES / "benchmark_cost_accuracy.png", dpi=120)
-    plt.close(fig)
-    written.append("figures/benchmark_cost_accuracy.png")
+    written.append(_save(fig, "benchmark_cost_accuracy.png"))
 
     # 3. RDF and spectra against the reference
     fig, axes = plt.subplots(2, len(systems), figsize=(4.2 * len(systems), 6.5), squeeze=False)
@@ -536,10 +540,7 @@ def figures(rows, report: dict) -> list[str]:
         axes[1, column].set_xlabel("wavenumber (cm⁻¹)")
         axes[1, column].set_ylabel("water-H VACF spectrum")
     axes[0, 0].legend(fontsize=6)
-    fig.tight_layout()
-    fig.savefig(FIGURES / "benchmark_dynamics.png", dpi=120)
-    plt.close(fig)
-    written.append("figures/benchmark_dynamics.png")
+    written.append(_save(fig, "benchmark_dynamics.png"))
 
     # 4. step-size scan
     scans = {s: report["scan"][s] for s in SYSTEMS if report["scan"].get(s)}
@@ -562,10 +563,7 @@ def figures(rows, report: dict) -> list[str]:
         ax.set_ylabel("max|H − E_ref| per DOF (kJ/mol); × = failed")
         ax.set_title(system)
     axes[0, 0].legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(FIGURES / "benchmark_step_scan.png", dpi=120)
-    plt.close(fig)
-    written.append("figures/benchmark_step_scan.png")
+    written.append(_save(fig, "benchmark_step_scan.png"))
     return written
 
 
