@@ -431,6 +431,8 @@ def scan_markdown(system: str, scan: dict) -> str:
         limit = "none" if largest is None else f"{largest:g} fs"
         if largest is not None and largest == cells["scanned_to_fs"]:
             limit = f"≥ {largest:g} fs (scan end)"
+        if sum(1 for s in cells if s[0].isdigit()) == 1:
+            limit = "not scanned"
         lines.append(f"| {LABELS[integrator]} | " + " | ".join(row) + f" | {limit} |")
     return "\n".join(lines)
 
