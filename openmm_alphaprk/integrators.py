@@ -32,6 +32,7 @@ from typing import ClassVar
 import openmm as mm
 import openmm.unit as unit
 
+from ._triple_jump import GAMMA1, GAMMA2
 from ._units import to_dimensionless, to_float
 from .energy_mode import (
     CONTROLLER_DEFAULTS,
@@ -48,10 +49,6 @@ KIND_VARIABLE = "alphaprk_kind"
 DEFAULT_CONSTRAINT_TOLERANCE = 1e-8
 DEFAULT_MIDPOINT_TOLERANCE = 1e-10  # nm, RMS change of x1 per degree of freedom
 DEFAULT_MAX_MIDPOINT_ITERATIONS = 20
-
-#: Triple-jump (Yoshida) weights of the fourth-order composition (design doc §8).
-GAMMA1 = 1.0 / (2.0 - 2.0 ** (1.0 / 3.0))
-GAMMA2 = -(2.0 ** (1.0 / 3.0)) / (2.0 - 2.0 ** (1.0 / 3.0))
 
 
 class MasslessParticleError(RuntimeError):

@@ -12,10 +12,8 @@ from collections.abc import Callable
 import numpy as np
 from scipy.optimize import brentq
 
+from .._triple_jump import GAMMA1, GAMMA2
 from .step import Array, ConstrainedProblem, alpha_rattle_step
-
-GAMMA1 = 1.0 / (2.0 - 2.0 ** (1.0 / 3.0))
-GAMMA2 = -(2.0 ** (1.0 / 3.0)) / (2.0 - 2.0 ** (1.0 / 3.0))
 
 Step = Callable[..., tuple[Array, Array, Array]]
 
