@@ -10,6 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import openmm.app as app
+import openmm.unit as unit
 
 from .integrators import AlphaRattleIntegrator, restore_integrator
 
@@ -225,8 +226,6 @@ class VelocityDCDReporter:
         return {"steps": steps, "periodic": None, "include": ["velocities"]}
 
     def report(self, simulation: app.Simulation, state) -> None:
-        import openmm.unit as unit
-
         velocities = state.getVelocities(asNumpy=True).value_in_unit(unit.nanometers / unit.picoseconds)
         if not np.all(np.isfinite(velocities)):
             raise ValueError(
