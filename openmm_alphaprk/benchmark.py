@@ -65,6 +65,30 @@ def _total_energy(context: mm.Context) -> float:
     return (state.getPotentialEnergy() + state.getKineticEnergy()).value_in_unit(unit.kilojoules_per_mole)
 
 
+def interleaved_timing(
+    integrators: dict[str, tuple[mm.Integrator, int]],
+    steps: int,
+    rounds: int,
+    progress: bool = False,
+) -> dict[str, float]:
+    """Median wall time (ms) per benchmark step of each integrator, from interleaved rounds.
+
+    Each round steps every integrator in turn, so that any load on the machine falls on
+    all of them alike. ``integrators`` maps a name to (integrator, integrator steps per
+    benchmark step); each round takes ``steps`` benchmark steps of each. With no rounds
+    the result is empty.
+    """
+    times: dict[str, list[float]] = {name: [] for name in integrators}
+    for round_index in range(rounds):
+        for name, (integrator, substeps) in integrators.items():
+            if progress:
+                print(f"round {round_index + 1}/{rounds}: {name}", file=sys.stderr, flush=True)
+            start = time.perf_counter()
+            integrator.step(steps * substeps)
+            times[name].append((time.perf_counter() - start) / steps * 1e3)
+    return {name: statistics.median(values) for name, values in times.items() if values}
+
+
 def run_benchmark(
     box: WaterBox,
     integrators: dict[str, Callable[[], mm.Integrator]],
@@ -113,22 +137,17 @@ def run_benchmark(
     for integrator, _ in runs.values():
         integrator.step(2)  # program analysis and first force evaluations
     evaluations_before = {name: _force_evaluations(integrator) for name, (integrator, _) in runs.items()}
-    times: dict[str, list[float]] = {name: [] for name in runs}
-    for round_index in range(rounds):
-        for name, (integrator, _) in runs.items():
-            if progress:
-                print(f"round {round_index + 1}/{rounds}: {name}", file=sys.stderr, flush=True)
-            start = time.perf_counter()
-            integrator.step(steps)
-            times[name].append((time.perf_counter() - start) / steps * 1e3)
+    medians = interleaved_timing(
+        {name: (integrator, 1) for name, (integrator, _) in runs.items()}, steps, rounds, progress
+    )
     rows = []
-    baseline = statistics.median(times[next(iter(times))])
+    baseline = medians[next(iter(medians))]
     for name, (integrator, _) in runs.items():
         evaluations = _force_evaluations(integrator)
         per_step = (
             (evaluations - evaluations_before[name]) / (steps * rounds) if evaluations is not None else 1.0
         )
-        ms = statistics.median(times[name])
+        ms = medians[name]
         rows.append(BenchmarkRow(name, ms, ms / baseline, per_step, float("nan")))
     del runs
     for row, make in zip(rows, integrators.values()):

@@ -18,9 +18,7 @@ from __future__ import annotations
 
 import argparse
 import json
-import statistics
 import sys
-import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
 
@@ -29,7 +27,7 @@ import openmm as mm
 import openmm.unit as unit
 from tqdm import tqdm
 
-from .benchmark import _context, _total_energy, add_box_arguments
+from .benchmark import _context, _total_energy, add_box_arguments, interleaved_timing
 from .integrators import AlphaRattleIntegrator, RattleIntegrator
 from .waterbox import WaterBox, build_water_box
 
@@ -223,19 +221,15 @@ def run_energy_benchmark(
             equal_name = f"RATTLE h/{k}"
             integrators[equal_name] = equal_cost_rattle(timestep, k)
             names.append(equal_name)
-    times_ms: dict[str, list[float]] = {name: [] for name in runs}
-    for _ in range(timing_rounds):
-        for row in rows:
-            if row.blew_up_at_step is not None:
-                continue
-            integrator, _, substeps = runs[row.name]
-            start = time.perf_counter()
-            integrator.step(timing_steps * substeps)
-            times_ms[row.name].append((time.perf_counter() - start) / timing_steps * 1e3)
-    baseline = statistics.median(times_ms[rows[0].name]) if times_ms[rows[0].name] else float("nan")
+    medians = interleaved_timing(
+        {row.name: (runs[row.name][0], runs[row.name][2]) for row in rows if row.blew_up_at_step is None},
+        timing_steps,
+        timing_rounds,
+    )
+    baseline = medians.get(rows[0].name, float("nan"))
     for row in rows:
-        if times_ms[row.name]:
-            row.ms_per_step = statistics.median(times_ms[row.name])
+        if row.name in medians:
+            row.ms_per_step = medians[row.name]
             row.time_ratio = row.ms_per_step / baseline
     return rows, traces
 

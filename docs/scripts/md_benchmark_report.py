@@ -196,11 +196,9 @@ def timing_table(system: str, steps: int = 30, rounds: int = 3) -> dict[str, dic
     of them alike, so the ratios to RATTLE 2 fs are the numbers to read. Median ms/step of
     ``rounds`` rounds of ``steps`` steps from the equilibrated start, CPU platform.
     """
-    import statistics
-    import time
-
     import openmm as mm
 
+    from openmm_alphaprk.benchmark import interleaved_timing
     from openmm_alphaprk.integrator_specs import make_integrator
     from openmm_alphaprk.systems import prepare_system
 
@@ -213,16 +211,13 @@ def timing_table(system: str, steps: int = 30, rounds: int = 3) -> dict[str, dic
         context.setState(prepared.state)
         integrator.step(2)  # program analysis, first forces
         runs[label(integrator_name, step)] = (integrator, context, step)
-    times: dict[str, list[float]] = {name: [] for name in runs}
-    for _ in range(rounds):
-        for name, (integrator, _context, _step) in runs.items():
-            start = time.perf_counter()
-            integrator.step(steps)
-            times[name].append((time.perf_counter() - start) / steps * 1e3)
-    baseline = statistics.median(times[label("rattle", 2.0)])
+    medians = interleaved_timing(
+        {name: (integrator, 1) for name, (integrator, _context, _step) in runs.items()}, steps, rounds
+    )
+    baseline = medians[label("rattle", 2.0)]
     table = {}
     for name, (_integrator, _context, step) in runs.items():
-        ms = statistics.median(times[name])
+        ms = medians[name]
         table[name] = {
             "ms_per_step": ms,
             "time_per_step_ratio": ms / baseline,
