@@ -22,7 +22,8 @@ import numpy as np
 import openmm as mm
 import openmm.unit as unit
 
-from .integrators import AlphaRattleIntegrator, RattleIntegrator, _ConstrainedVerletBase
+from .integrators import AlphaRattleIntegrator, RattleIntegrator
+from .step_program import _StepProgram
 from .waterbox import WaterBox, build_water_box
 
 
@@ -166,7 +167,7 @@ def run_benchmark(
 
 def _force_evaluations(integrator: mm.Integrator) -> int | None:
     """Force evaluations counted by this package's integrators; None for others (one per step)."""
-    if isinstance(integrator, _ConstrainedVerletBase):
+    if isinstance(integrator, _StepProgram):
         return integrator.force_evaluations
     return None
 

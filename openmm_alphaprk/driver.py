@@ -28,13 +28,13 @@ from ._units import to_dimensionless, to_float
 from .analysis.energy import EnergyDrift, energy_drift
 from .energy_benchmark import degrees_of_freedom
 from .integrator_specs import IntegratorSpec, check_compatible, make_integrator, parse_integrator
-from .integrators import _ConstrainedVerletBase
 from .reporters import (
     AlphaControllerReporter,
     VelocityDCDReporter,
     read_controller_csv,
     summarize_controller,
 )
+from .step_program import _StepProgram
 from .systems import PreparedSystem, prepare_system
 
 PRECISIONS = ("single", "mixed", "double")
@@ -408,9 +408,7 @@ def summarize(
     controller = {}
     if spec.kind == "energy":
         controller = summarize_controller(read_controller_csv(output / rundir.CONTROLLER_FILE)).as_dict()
-    evaluations = (
-        integrator.force_evaluations_per_step if isinstance(integrator, _ConstrainedVerletBase) else 1.0
-    )
+    evaluations = integrator.force_evaluations_per_step if isinstance(integrator, _StepProgram) else 1.0
     simulated_ns = steps_this_call * timestep_ps / 1000.0
     return RunSummary(
         system=prepared.name,

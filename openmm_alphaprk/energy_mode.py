@@ -3,40 +3,43 @@
 Each step chooses α so that the total energy after the step equals the reference
 energy E_ref, the energy of the state the run started from (design doc §4). The
 controller runs entirely inside the ``CustomIntegrator`` step program, in one
-``while`` block; each pass of it is one *trial*:
+``while`` loop; each *trial* of an α is:
 
-1. α ← the proposal of the previous pass (the first pass: the last step's α*);
-2. predict x1 with the current midpoint force (a constraint solve, no force);
-3. evaluate the force at the predicted midpoint x_m = (x0 + x1)/2;
-4. re-solve x1 with that force (its change is the midpoint inconsistency);
-5. evaluate force and energy at x1, set v1 (RATTLE projection) and the residual
+1. the position solve with the current midpoint force (at the first trial of a
+   step a predictor: the force extrapolated from the previous step);
+2. the force at the midpoint x_m = (x0 + x1)/2 and the solve again: one midpoint
+   force per trial, so the midpoint converges along with α (the loop ends once α
+   stops moving and the last midpoint force changed x1 by less than
+   ``midpoint_tolerance``; trials after α froze only refine the midpoint);
+3. the force and energy at x1, v1 (RATTLE projection), the residual
    r = U(x1) + K(v1) − E_ref;
-6. propose the next α by a damped secant step, Δα = −r S/(S² + (d S̄)²), with S =
-   dr/dα measured inside this step, S̄ a running mean of |S| over past steps and
+4. the next α by a damped secant step, Δα = −r S/(S² + (d S̄)²), with S = dr/dα
+   measured inside this step, S̄ a running mean of |S| over past steps and
    d = ``slope_damping``: where the slope nearly vanishes no bounded α can help, and
-   throwing α far would spoil the steps after it. The first pass has no slope yet; it
-   uses the last step's and moves α by at least ``alpha_probe`` so that the second
-   pass measures one (at a bound, where that move would leave the interval, it
-   probes inwards). Every move is limited to ``max_alpha_change`` and clipped to the
-   α bounds.
+   throwing α far would spoil the steps after it. The first trial has no slope yet;
+   it uses the last step's and moves α by at least ``alpha_probe`` so that the
+   second trial measures one (at a bound, where that move would leave the interval,
+   it probes inwards). Every move is limited to ``max_alpha_change`` and clipped to
+   the α bounds. A new trial starts at step 2 with x1 extrapolated linearly in α.
 
-This is the second-order step. At order 4 (α-RATTLE-4) the first RATTLE sub-step is
-taken once, and a trial redoes the middle α-RATTLE sub-step (steps 2–4 with h
-scaled by γ2) and the last RATTLE sub-step: three force evaluations per trial.
+At order 4 (α-RATTLE-4) the first RATTLE sub-step is taken once, and a trial redoes
+the middle α-RATTLE sub-step (steps 1–2 with h scaled by γ2) and the last RATTLE
+sub-step: three force evaluations per trial.
 
 α stops moving when the energy is within tolerance, when α sits at a bound and the
 root lies beyond it (the *fallback*: the best α inside the bounds), or after
-``max_trials`` passes (also a fallback). The loop ends once α stops moving and the
-midpoint force is consistent with x1 to ``midpoint_tolerance``; passes after α froze
-only refine the midpoint. ``max_midpoint_iterations`` caps all passes. E_ref is
-never moved by the controller, so a residual left by a fallback is corrected by
-later steps and cannot accumulate into drift. A non-finite residual or a midpoint
-iteration that ran away rejects the step (the context keeps the state at its start;
-``step`` raises).
+``max_trials`` trials (also a fallback); ``max_midpoint_iterations`` caps the midpoint
+forces of a step. E_ref is never moved by the controller, so a residual left by a
+fallback is corrected by later steps and cannot accumulate into drift. A non-finite
+residual or a midpoint iteration that ran away rejects the step (the context keeps
+the state at its start; ``step`` raises).
 
-E_ref is taken from the state at the first step, and again whenever the state at
-the start of a step differs from the state the previous step ended in (the user set
-positions or velocities), or after :meth:`reset_reference_energy`.
+E_ref is taken from the state at the first step, after :meth:`reset_reference_energy`,
+and when the user changed the state between steps: the positions or velocities at the
+start of a step differ from those the previous step ended with *and* the total energy
+differs from the one it ended with by more than max(tolerance, 1e-6 |E|). The energy
+test is what tells a user's change from the common platform's reordering and
+re-wrapping of atoms every 250 steps, which moves coordinates but not the energy.
 """
 
 from __future__ import annotations
@@ -45,9 +48,15 @@ from dataclasses import dataclass
 
 import openmm.unit as unit
 
+from . import platforms
 from ._units import to_dimensionless, to_float
+from .step_program import MIDDLE_H, OUTER_H, _StepProgram, first_forces, last_forces
 
-DEFAULT_ENERGY_TOLERANCE = 0.01  # kJ/mol, absolute, on H − E_ref after the step
+#: Energy tolerance (kJ/mol) until the first step sets the automatic one.
+PROVISIONAL_ENERGY_TOLERANCE = 0.01
+#: Relative energy change between steps below which a moved state counts as the same
+#: state (the common platform's reordering), unless the energy tolerance is larger.
+_SAME_ENERGY = 1e-6
 DEFAULT_MAX_TRIALS = 3
 DEFAULT_SLOPE_DAMPING = 0.5
 
@@ -83,182 +92,199 @@ CONTROLLER_DEFAULTS = {
     ),
 }
 
-#: Relative change of the positions/velocity checksums that counts as "the user
-#: changed the state between steps" (sums of identical data agree far better).
-_STATE_CHANGE_THRESHOLD = 1e-9
 
+class _EnergyModeProgram(_StepProgram):
+    """The α* controller's variables, step programs and reporting.
 
-class _EnergyModeProgram:
-    """Mixin of :class:`~openmm_alphaprk.AlphaRattleIntegrator`: the α* controller.
-
-    Relies on the pieces of ``_ConstrainedVerletBase`` (``_add_begin_step`` …) and
-    on the fixed-α pieces of the integrator (``_FIRST_FORCES``, ``_LAST_FORCES``,
-    ``_add_save_start_force``, ``_add_reject_unconverged_step``).
+    Base of :class:`~openmm_alphaprk.AlphaRattleIntegrator`; built from the pieces
+    of :class:`~openmm_alphaprk.step_program._StepProgram`.
     """
 
     def _add_energy_mode_variables(
         self,
         alpha_bounds: tuple[float, float],
-        energy_tolerance: float,
+        energy_tolerance: float | None,
         max_trials: int,
         max_alpha_change: float,
         alpha_probe: float,
         slope_damping: float,
+        order: int,
     ) -> None:
         low, high = alpha_bounds
+        automatic = energy_tolerance is None
         for name, value in (
             ("alpha_min", low),
             ("alpha_max", high),
-            ("energy_tolerance", energy_tolerance),
+            ("energy_tolerance", PROVISIONAL_ENERGY_TOLERANCE if automatic else energy_tolerance),
+            ("energy_tolerance_automatic", float(automatic)),
             ("max_trials", max_trials),
             ("max_alpha_change", max_alpha_change),
             ("alpha_probe", alpha_probe),
-            ("reference_energy", 0),
-            ("reference_set", 0),
-            ("reference_resets", 0),
-            ("kinetic_energy", 0),
-            ("residual", 0),
-            ("residual_last", 0),
-            ("alpha_last", 0),
-            ("alpha_next", 0),
-            ("alpha_start", 0),
-            ("slope", 0),
-            ("slope_scale", 0),
             ("slope_damping", slope_damping),
-            ("slope_measured", 0),
-            ("trials", 0),
-            ("controller_done", 0),
-            ("fell_back", 0),
-            ("alpha_at_bound", 0),
-            ("steps_within_tolerance", 0),
-            ("steps_fallen_back", 0),
-            ("steps_at_bound", 0),
-            ("predictor_valid", 0),
-            ("position_checksum", 0),
-            ("velocity_checksum", 0),
-            ("end_position_checksum", 0),
-            ("end_velocity_checksum", 0),
-            ("state_changed", 0),
         ):
             self.addGlobalVariable(name, value)
-        self.addPerDofVariable("fmid_last", 0)
+        for name in (
+            "reference_energy",
+            "reference_set",
+            "reference_resets",
+            "state_moved",
+            "start_energy",
+            "end_energy",
+            "retake",
+            "retry",
+            "kinetic_energy",
+            "residual",
+            "residual_last",
+            "alpha_last",
+            "alpha_next",
+            "alpha_start",
+            "slope",
+            "slope_scale",
+            "slope_measured",
+            "trials",
+            "controller_done",
+            "restarting",
+            "fell_back",
+            "alpha_at_bound",
+            "steps_within_tolerance",
+            "steps_fallen_back",
+            "steps_at_bound",
+            "predictor_valid",
+        ):
+            self.addGlobalVariable(name, 0)
+        for name in ("xend", "vend", "fmid_last") + (("xa", "va", "fa", "fstart_last") if order == 4 else ()):
+            self.addPerDofVariable(name, 0)
 
+    def _set_automatic_energy_tolerance(self, n_atoms: int, precision: str) -> None:
+        """Set the default energy tolerance for the system and platform, unless the user chose one."""
+        if self.getGlobalVariableByName("energy_tolerance_automatic"):
+            tolerance = platforms.default_energy_tolerance(n_atoms, precision)
+            self.setGlobalVariableByName("energy_tolerance", tolerance)
+
+    # ---------------------------------------------------------------- programs
     def _build_energy_program(self) -> None:
-        self._add_begin_step()
-        self._add_detect_state_change()
-        self._add_reference_energy()
-        self._add_save_start_force()
-        self._add_midpoint_predictor()
-        self._add_controller_loop()
-        self._add_reject_unconverged_step()
-        self.addComputePerDof("v", "select(midpoint_failed, v0, v)")
+        """Order 2: one loop over trials; a trial ends with its velocity update and residual."""
+        self._add_save_step_start(fstart="f")
+        self._add_reference_check()
+        # F(x_m) predicted by linear extrapolation in time from the previous step's midpoint force
+        self.addComputePerDof("fmid", "select(predictor_valid, 2*fstart - fmid_last, fstart)")
+        self._add_controller_start()
+        self.addComputeGlobal("solving", "1")
+        self.beginWhileBlock("solving > 0.5")
+        self._add_position_solve(first_forces("alpha"), "dt", fallback="x0")
+        self.beginIfBlock("need_midpoint < 0.5")
+        self._add_velocity_update(last_forces("alpha"), "dt", fallback="v0")
+        self._add_trial_end(next_start={})
+        self.addComputeGlobal("solving", "restarting")
+        self.endBlock()
+        self.beginIfBlock("need_midpoint > 0.5")
+        self._add_midpoint_force("dt", "alpha", iterate=False)
+        self.endBlock()
+        self.endBlock()
+        self._add_controller_bookkeeping()
+        self._add_end_step()
+
+    def _build_order4_energy_program(self) -> None:
+        """α-RATTLE-4: the first RATTLE sub-step once, then a loop over trials of the other two.
+
+        A trial redoes the middle α-RATTLE sub-step (γ2 h; midpoint force
+        warm-started from the previous trial) and the last RATTLE sub-step: three
+        force evaluations per trial.
+        """
+        self._add_save_step_start(xstep="x", vstep="v")
+        self._add_reference_check()
+        self._add_position_solve("0.5*f", OUTER_H)
+        self._add_velocity_update("0.5*f", OUTER_H)
+        self._add_controller_start()
+        # the midpoint force's offset from the sub-step's start force changes little between steps
+        self._add_inner_substeps_start(
+            "1",
+            xa="x",
+            va="v",
+            fa="f",
+            fmid="f + select(predictor_valid, fmid_last - fstart_last, 0)",
+            fstart_last="f",
+        )
+        self.beginWhileBlock("phase < 3.5")
+        self._add_substep_solve(fallback="xstep")
+        self.beginIfBlock("substep_done > 0.5")
+        self._add_substep_end(fallback="vstep")
+        self.endBlock()
+        self.beginIfBlock("phase > 3.5")
+        self._add_trial_end(next_start={"x0": "xa", "v0": "va", "fstart": "fa"})
+        self.addComputeGlobal("phase", "select(restarting, 2, phase)")
+        self.addComputeGlobal("hsub", f"select(restarting, {MIDDLE_H}, hsub)")
+        self.addComputeGlobal("alpha_sub", "alpha*restarting")
+        self.endBlock()
+        self.beginIfBlock("need_midpoint > 0.5")
+        self._add_midpoint_force("hsub", "alpha_sub", iterate=False)
+        self.endBlock()
+        self.endBlock()
         self._add_controller_bookkeeping()
         self._add_end_step()
 
     # ------------------------------------------------------------------ pieces
-    def _add_detect_state_change(self) -> None:
-        """Flag a start state that differs from the end of the previous step."""
-        self.addComputeSum("position_checksum", "x*x")
-        self.addComputeSum("velocity_checksum", "m*v*v")
-        self.addComputeGlobal(
-            "state_changed",
-            f"1 - step({_STATE_CHANGE_THRESHOLD}*(position_checksum + velocity_checksum + 1e-300)"
-            " - abs(position_checksum - end_position_checksum)"
-            " - abs(velocity_checksum - end_velocity_checksum))",
-        )
-        self.addComputeGlobal("reference_set", "reference_set*(1 - state_changed)")
+    def _add_reference_check(self) -> None:
+        """Take E_ref at the first step, after a reset, and after the user changed the state.
 
-    def _add_reference_energy(self) -> None:
-        """E_ref = U(x0) + K(v0) on the first step and after a change of state."""
-        self.beginIfBlock("reference_set < 0.5")
-        self.addComputeGlobal("reference_energy", "energy + 0.5*velocity_checksum")
-        self.addComputeGlobal("reference_set", "1")
-        self.addComputeGlobal("reference_resets", "reference_resets + 1")
-        self.addComputeGlobal("predictor_valid", "0")
-        self.addComputeGlobal("slope", "0")
-        self.endBlock()
-
-    def _add_midpoint_predictor(self) -> None:
-        """Start the midpoint force at F(x_m) ≈ 2 F(x0) − F(previous x_m) (else F(x0)).
-
-        Linear extrapolation in time from the previous step's midpoint force; only
-        the number of trials depends on it, not the converged step.
+        A start state that differs from the end of the previous step (a sum over
+        degrees of freedom, zero when nothing moved) opens the block; inside it the
+        energy decides: the common platform's reordering and re-wrapping of atoms move
+        coordinates but keep the energy.
         """
-        self.addComputePerDof("fmid", "select(predictor_valid, 2*fstart - fmid_last, fstart)")
-        self._add_controller_start()
+        self.addComputeSum("state_moved", "(x - xend)^2 + (v - vend)^2")
+        self.beginIfBlock("state_moved + 1 - reference_set > 0")
+        self.addComputeSum("kinetic_energy", "0.5*m*v*v")
+        self.addComputeGlobal("start_energy", "energy + kinetic_energy")
+        self.addComputeGlobal(
+            "retake",
+            "max(1 - reference_set, step(abs(start_energy - end_energy) - same));"
+            f"same = max(energy_tolerance, {_SAME_ENERGY}*abs(end_energy))",
+        )
+        self.addComputeGlobal("reference_energy", "select(retake, start_energy, reference_energy)")
+        self.addComputeGlobal("reference_resets", "reference_resets + retake")
+        self.addComputeGlobal("predictor_valid", "predictor_valid*(1 - retake)")
+        self.addComputeGlobal("slope", "select(retake, 0, slope)")
+        self.addComputeGlobal("reference_set", "1")
+        self.endBlock()
 
     def _add_controller_start(self) -> None:
         """Reset the per-step controller state; the first trial uses the last step's α*."""
+        if self.order == 2:
+            self._add_midpoint_setup("1")
         self.addComputeGlobal("alpha_start", "alpha")
-        self.addComputeGlobal("alpha_next", "min(max(alpha, alpha_min), alpha_max)")
-        self.addComputeGlobal("trials", "0")
-        self.addComputeGlobal("slope_measured", "0")
-        self.addComputeGlobal("controller_done", "0")
-        self.addComputeSum("ndof", "1")
+        self.addComputeGlobal("alpha", "min(max(alpha, alpha_min), alpha_max)")
+        for name in ("trials", "slope_measured", "controller_done", "restarting"):
+            self.addComputeGlobal(name, "0")
 
-    def _add_controller_loop(self) -> None:
-        """Trials of α with the midpoint force iterated along (see the module docstring)."""
-        self.beginWhileBlock("controller_done < 0.5")
-        self.addComputeGlobal("alpha", "alpha_next")
-        self._add_midpoint_trial()
-        self._add_velocity_update(self._LAST_FORCES)
-        self._add_trial_residual()
-        self._add_alpha_update()
-        self.endBlock()
+    def _add_trial_end(self, next_start: dict[str, str]) -> None:
+        """Residual of the trial, the next α, and either the end of the step or a new trial.
 
-    def _build_order4_energy_program(self) -> None:
-        """α-RATTLE-4 in the energy mode: only the middle and last sub-steps depend on α.
-
-        The first RATTLE sub-step (γ1 h) is taken once; each trial of α redoes the
-        middle α-RATTLE sub-step (γ2 h; midpoint force warm-started from the previous
-        trial) and the last RATTLE sub-step: three force evaluations per trial.
+        A new trial restarts the α sub-step from ``next_start`` (the state after the
+        first sub-step at order 4) and goes straight to its midpoint block, which
+        solves x1 with the new α before taking the midpoint force.
         """
-        self._add_begin_step()
-        self._add_save_step_start()
-        self._add_detect_state_change()
-        self._add_reference_energy()
-        self._add_rattle_substep(self._OUTER_H)
-        self.addComputePerDof("xa", "x")
-        self.addComputePerDof("va", "v")
-        self.addComputePerDof("fstart", "f")
-        # the midpoint force's offset from the sub-step's start force changes little between steps
-        self.addComputePerDof("fmid", "fstart + select(predictor_valid, fmid_last - fstart_last, 0)")
-        self.addComputePerDof("fstart_last", "fstart")
-        self._add_controller_start()
-        self.beginWhileBlock("controller_done < 0.5")
-        self.addComputeGlobal("alpha", "alpha_next")
-        self.addComputePerDof("x", "xa")
-        self.addComputePerDof("v", "va")
-        self._add_substep_start()
-        self._add_midpoint_trial(self._MIDDLE_H)
-        self._add_velocity_update(self._LAST_FORCES, self._MIDDLE_H)
-        self._add_rattle_substep(self._OUTER_H)
-        self._add_trial_residual()
-        self._add_alpha_update()
-        self.endBlock()
-        self._add_reject_unconverged_step()
-        self._add_restore_step_start_if_failed()
-        self._add_controller_bookkeeping()
-        self._add_end_step()
-
-    def _add_midpoint_trial(self, h: str = "dt") -> None:
-        """x1 predicted with the current midpoint force, the force at its midpoint, x1 again.
-
-        Leaves x = x1 consistent with the new midpoint force, and ``midpoint_change``
-        = RMS change of x1 (twice the distance between the midpoint the force was
-        taken at and the final midpoint). One force evaluation.
-        """
-        self._add_reset_constraint_reference()
-        self._add_position_solve(self._FIRST_FORCES, h)
-        self.addComputePerDof("x1", "x")
-        self._add_midpoint_pass(h)
-
-    def _add_trial_residual(self) -> None:
-        """Set the residual U(x) + K(v) − E_ref of the state the trial ended in."""
         self.addComputeSum("kinetic_energy", "0.5*m*v*v")
         self.addComputeGlobal("residual", "energy + kinetic_energy - reference_energy")
         self.addComputeGlobal("trials", "trials + 1")
-        self.addComputeGlobal("midpoint_iterations", "trials")
+        self._add_alpha_update()
+        # a midpoint that ran away: one more pass without a midpoint force falls back to the start
+        self.addComputeGlobal(
+            "retry",
+            "controller_done*(1 - midpoint_failed)*(1 - step(accepted - midpoint_change));"
+            "accepted = max(1000*midpoint_tolerance, 1e-8)",
+        )
+        self.addComputeGlobal("midpoint_failed", "max(midpoint_failed, retry)")
+        self.addComputeGlobal("restarting", "1 - controller_done + retry")
+        self.addComputeGlobal("alpha", "select(restarting, alpha_next, alpha)")
+        self.addComputeGlobal("need_midpoint", "restarting")
+        self.addComputeGlobal("previous_midpoint_change", "1e30")
+        self.addComputeGlobal("end_energy", "residual + reference_energy")
+        self.addComputePerDof("xend", "x")
+        self.addComputePerDof("vend", "v")
+        self.addComputePerDof("fmid_last", "fmid")
+        for variable, expression in next_start.items():
+            self.addComputePerDof(variable, f"select(restarting, {expression}, {variable})")
 
     def _add_alpha_update(self) -> None:
         """Secant step on r(α) with the in-step slope; bounded; decide whether to stop.
@@ -292,14 +318,15 @@ class _EnergyModeProgram:
         )
         self.addComputeGlobal(
             "controller_done",
-            "max(max(stays*step(midpoint_tolerance - midpoint_change), capped), not_finite);"
+            "max(max(stays*step(midpoint_tolerance - midpoint_change), capped),"
+            " max(not_finite, midpoint_failed));"
             "not_finite = 1 - step(1e30 - abs(residual));"
-            "capped = step(trials - max_midpoint_iterations + 0.5);"
+            "capped = step(midpoint_iterations - max_midpoint_iterations + 0.5);"
             "stays = 1 - step(abs(alpha_next - alpha) - 1e-12)",
         )
 
     def _add_controller_bookkeeping(self) -> None:
-        """Per-step diagnostics and totals; remember what the next step starts from."""
+        """Per-step diagnostics and totals."""
         self.addComputeGlobal("alpha", "select(midpoint_failed, alpha_start, alpha)")
         self.addComputeGlobal(
             "fell_back", "(1 - midpoint_failed)*(1 - step(energy_tolerance - abs(residual)))"
@@ -317,10 +344,7 @@ class _EnergyModeProgram:
             "select(slope_measured, select(slope_scale, running, abs(slope)), slope_scale);"
             "running = 0.9*slope_scale + 0.1*abs(slope)",
         )
-        self.addComputePerDof("fmid_last", "fmid")
         self.addComputeGlobal("predictor_valid", "1 - midpoint_failed")
-        self.addComputeSum("end_position_checksum", "x*x")
-        self.addComputeSum("end_velocity_checksum", "m*v*v")
 
     # --------------------------------------------------------------- reporting
     def reset_reference_energy(self) -> None:
@@ -360,6 +384,7 @@ class _EnergyModeProgram:
         self._require_energy_mode("energy_tolerance")
         tolerance = to_float(value, unit.kilojoules_per_mole, "energy_tolerance", positive=True)
         self.setGlobalVariableByName("energy_tolerance", tolerance)
+        self.setGlobalVariableByName("energy_tolerance_automatic", 0)
 
     @property
     def alpha_bounds(self) -> tuple[float, float]:

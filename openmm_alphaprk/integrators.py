@@ -1,192 +1,60 @@
 """RATTLE and α-RATTLE as OpenMM ``CustomIntegrator`` step programs.
 
-Both integrators are built from the same small pieces (``_add_*`` methods), one per
-sub-step of the velocity-Verlet/RATTLE step, so that α-RATTLE at α = 0 performs the
-same floating-point operations as :class:`RattleIntegrator`.
-
 The α-RATTLE step from a consistent state (x0, v0) with F0 = F(x0) (design doc §3)::
 
     x1 = x0 + h v0 + h² M⁻¹[(½−α) F0 + α F(x_m)] − M⁻¹ G(x0)ᵀ λ,   g(x1) = 0,   x_m = (x0+x1)/2
     v1 = (x1 − x0)/h + h M⁻¹[α F(x_m) + (½−α) F(x1)] − M⁻¹ G(x1)ᵀ μ,  G(x1) v1 = 0
 
 The implicit midpoint force is found by fixed-point iteration started from the RATTLE
-predictor and iterated to a tolerance (a single pass is not symplectic).
-
-OpenMM facts the program relies on (observed on OpenMM 8.6, see the design doc §5):
-
-- ``addConstrainPositions`` projects along the constraint directions of the positions
-  of the *previous* constraint application (at the start of a step: the positions at
-  the start of the step).  Before every re-solve of x1 the program therefore sets
-  x = x0 and constrains once, which resets that reference to x0.
-- The force at the start of a step is reused from the end of the previous step; OpenMM
-  recomputes it only if the state was changed in between.
-- Per-DOF computations skip massless particles, and on the Reference and CPU platforms
-  virtual sites are only placed at the end of a step, so forces taken inside a step see
-  stale virtual sites.  Systems with massless particles are therefore refused.
+predictor and iterated to a tolerance (a single pass is not symplectic). The programs
+are built from the pieces of :mod:`openmm_alphaprk.step_program`, whose ordering rules
+make the same program correct on the Reference, CPU and common (CUDA, OpenCL, HIP)
+platforms.
 """
 
 from __future__ import annotations
 
-from typing import ClassVar
-
 import openmm as mm
 import openmm.unit as unit
 
-from ._triple_jump import GAMMA1, GAMMA2
+from . import platforms
 from ._units import to_dimensionless, to_float
 from .energy_mode import (
     CONTROLLER_DEFAULTS,
-    DEFAULT_ENERGY_TOLERANCE,
     DEFAULT_MAX_TRIALS,
     DEFAULT_SLOPE_DAMPING,
     _EnergyModeProgram,
     check_alpha_bounds,
 )
+from .step_program import (
+    KIND_VARIABLE,
+    OUTER_H,
+    MasslessParticleError,
+    _StepProgram,
+    first_forces,
+    last_forces,
+    positive_int,
+)
 
-#: Name of the global variable that identifies the integrator class in serialized form.
-KIND_VARIABLE = "alphaprk_kind"
+__all__ = [
+    "KIND_VARIABLE",
+    "AlphaRattleIntegrator",
+    "MasslessParticleError",
+    "MidpointConvergenceError",
+    "RattleIntegrator",
+    "restore_integrator",
+]
 
 DEFAULT_CONSTRAINT_TOLERANCE = 1e-8
 DEFAULT_MIDPOINT_TOLERANCE = 1e-10  # nm, RMS change of x1 per degree of freedom
 DEFAULT_MAX_MIDPOINT_ITERATIONS = 20
 
 
-class MasslessParticleError(RuntimeError):
-    """Raised when a system with massless particles (e.g. virtual sites) is integrated."""
-
-
 class MidpointConvergenceError(RuntimeError):
     """Raised when the implicit midpoint iteration of α-RATTLE fails to converge."""
 
 
-class _ConstrainedVerletBase(mm.CustomIntegrator):
-    """Common state, sub-step pieces and reporting of RATTLE-type integrators.
-
-    Subclasses set ``_kind`` (stored in the global variable :data:`KIND_VARIABLE` so
-    that :func:`restore_integrator` can recognise a deserialized integrator) and build
-    their step program in ``_build_program``.
-    """
-
-    _kind: ClassVar[int] = 0
-
-    def __init__(self, timestep: unit.Quantity | float, constraint_tolerance: float) -> None:
-        step_size = to_float(timestep, unit.picoseconds, "timestep", positive=True)
-        tolerance = to_dimensionless(constraint_tolerance, "constraint_tolerance", positive=True)
-        super().__init__(step_size)
-        self.setConstraintTolerance(tolerance)
-        self.addGlobalVariable(KIND_VARIABLE, self._kind)
-        self.addGlobalVariable("force_evaluations", 0)
-        self.addGlobalVariable("steps_taken", 0)
-        self.addGlobalVariable("step_force_evaluations", 0)
-        for name in ("x0", "v0", "massive"):
-            self.addPerDofVariable(name, 0)
-
-    # ------------------------------------------------------------------ pieces
-    def _add_begin_step(self) -> None:
-        """Save the starting state (x0, v0); mark the DOFs the program can move."""
-        self.addComputePerDof("massive", "1")
-        self.addComputePerDof("x0", "x")
-        self.addComputePerDof("v0", "v")
-        self.addComputeGlobal("step_force_evaluations", "0")
-
-    def _add_position_solve(self, force_term: str, h: str = "dt") -> None:
-        """Set x ← x0 + h v0 + h² M⁻¹(force_term), then SHAKE/SETTLE along G(reference)."""
-        self.addComputePerDof("x", f"x0 + {h}*v0 + {h}*{h}*({force_term})/m")
-        self.addConstrainPositions()
-
-    def _add_reset_constraint_reference(self) -> None:
-        """Make x0 the reference of the next position constraint (a no-op on x0)."""
-        self.addComputePerDof("x", "x0")
-        self.addConstrainPositions()
-
-    def _add_count_force_evaluation(self) -> None:
-        self.addComputeGlobal("step_force_evaluations", "step_force_evaluations + 1")
-
-    def _add_velocity_update(self, force_term: str, h: str = "dt") -> None:
-        """Set v ← (x1 − x0)/h + h M⁻¹(force_term), then RATTLE velocity projection at x1.
-
-        ``force_term`` uses ``f``, the force at the current positions x1: this is the
-        step's final force evaluation, reused at the start of the next step.
-        """
-        self.addComputePerDof("v", f"(x - x0)/{h} + {h}*({force_term})/m")
-        self._add_count_force_evaluation()
-        self.addConstrainVelocities()
-
-    def _add_end_step(self) -> None:
-        self.addComputeGlobal("force_evaluations", "force_evaluations + step_force_evaluations")
-        self.addComputeGlobal("steps_taken", "steps_taken + 1")
-
-    # --------------------------------------------------------------- stepping
-    def step(self, steps: int) -> None:
-        """Advance the context by ``steps`` steps.
-
-        The first call takes one step and then checks that every particle has mass;
-        see :class:`MasslessParticleError`.
-        """
-        steps = int(steps)
-        if steps > 0 and not getattr(self, "_massless_checked", False):
-            mm.CustomIntegrator.step(self, 1)
-            self._check_no_massless_particles()
-            steps -= 1
-        if steps > 0:
-            mm.CustomIntegrator.step(self, steps)
-
-    def _check_no_massless_particles(self) -> None:
-        massive = self.getPerDofVariableByName("massive")
-        massless = [i for i, flag in enumerate(massive) if flag[0] != 1.0]
-        if massless:
-            raise MasslessParticleError(
-                f"{type(self).__name__} cannot integrate this system: {len(massless)} particle(s) "
-                f"have zero mass (first index {massless[0]}). Virtual sites (e.g. the M-sites of "
-                "TIP4P-Ew or OPC water) are only placed at the end of a CustomIntegrator step on "
-                "the Reference and CPU platforms, so forces evaluated inside the step would be "
-                "wrong. The context was advanced by one step and should be discarded. Use a "
-                "water model without virtual sites (TIP3P, SPC/E) or openmm.VerletIntegrator."
-            )
-        self._massless_checked = True
-
-    # -------------------------------------------------------------- reporting
-    @property
-    def timestep(self) -> unit.Quantity:
-        """The step size, as a Quantity in picoseconds."""
-        return self.getStepSize()
-
-    @property
-    def constraint_tolerance(self) -> float:
-        """Relative tolerance of SHAKE/CCMA/SETTLE position and velocity constraints."""
-        return self.getConstraintTolerance()
-
-    @property
-    def steps_taken(self) -> int:
-        """Number of steps taken with this integrator."""
-        return int(self.getGlobalVariableByName("steps_taken"))
-
-    @property
-    def force_evaluations(self) -> int:
-        """Force evaluations requested by the step program since it was created.
-
-        The force at the start of a step is the one computed at the end of the
-        previous step and is not counted; OpenMM recomputes it (uncounted) only after
-        the user changes the state.
-        """
-        return int(self.getGlobalVariableByName("force_evaluations"))
-
-    @property
-    def last_step_force_evaluations(self) -> int:
-        """Force evaluations of the last step."""
-        return int(self.getGlobalVariableByName("step_force_evaluations"))
-
-    @property
-    def force_evaluations_per_step(self) -> float:
-        """Mean force evaluations per step (NaN before the first step)."""
-        steps = self.steps_taken
-        return self.force_evaluations / steps if steps else float("nan")
-
-    def __repr__(self) -> str:
-        return f"{type(self).__name__}(timestep={self.timestep})"
-
-
-class RattleIntegrator(_ConstrainedVerletBase):
+class RattleIntegrator(_StepProgram):
     """Velocity Verlet with SHAKE/SETTLE positions and RATTLE velocities.
 
     The standard constrained integrator, written with the same pieces as
@@ -213,13 +81,13 @@ class RattleIntegrator(_ConstrainedVerletBase):
         self._build_program()
 
     def _build_program(self) -> None:
-        self._add_begin_step()
+        self._add_save_step_start()
         self._add_position_solve("0.5*f")
         self._add_velocity_update("0.5*f")
         self._add_end_step()
 
 
-class AlphaRattleIntegrator(_EnergyModeProgram, _ConstrainedVerletBase):
+class AlphaRattleIntegrator(_EnergyModeProgram):
     """α-RATTLE: a one-parameter family of symplectic constrained integrators.
 
     The potential is integrated along the straight path x0 → x1 with weights
@@ -252,17 +120,19 @@ class AlphaRattleIntegrator(_EnergyModeProgram, _ConstrainedVerletBase):
         is ~100× smaller), since there it only limits how well angular momentum is
         kept: ΔL ≈ 2hα δx_m × F per step.
     max_midpoint_iterations
-        Cap on midpoint force evaluations per step (in the energy mode: on trials,
-        each two (order 2) or three (order 4) force evaluations).
+        Cap on midpoint force evaluations per step (in the energy mode summed over the
+        trials; a trial takes one or more midpoint evaluations and one (order 2) or two
+        (order 4) more).
     alpha_bounds
         Energy mode: the interval (low, high) α* is kept in; default (−0.5, 1.5) at
         order 2, (−0.2, 0.2) at order 4.
     energy_tolerance
-        Energy mode: target |H − E_ref| after each step (Quantity or kJ/mol; default
-        0.01). It must sit above the platform's noise in ``energy``: measured
-        3e-3 kJ/mol (standard deviation of CPU − Reference) on the single-precision
-        CPU platform for a 2,661-atom water box; raise it for larger systems there.
-        On the Reference platform 1e-4 works.
+        Energy mode: target |H − E_ref| after each step (Quantity or kJ/mol). The
+        default (None) is set at the first step from the system's size and the
+        platform's precision, 4× the measured noise of OpenMM's energy
+        (:func:`openmm_alphaprk.platforms.default_energy_tolerance`): 0.010 kJ/mol for
+        2,661 atoms in mixed precision or on the CPU platform, 0.047 for 21k atoms,
+        about 1e-5 in double precision. A target inside the noise only buys trials.
     max_trials
         Energy mode: trials per step that may change α; after them α is frozen
         and further trials only converge the midpoint force.
@@ -291,6 +161,7 @@ class AlphaRattleIntegrator(_EnergyModeProgram, _ConstrainedVerletBase):
     """
 
     _kind = 2
+    _has_midpoint = True
 
     def __init__(
         self,
@@ -301,7 +172,7 @@ class AlphaRattleIntegrator(_EnergyModeProgram, _ConstrainedVerletBase):
         max_midpoint_iterations: int = DEFAULT_MAX_MIDPOINT_ITERATIONS,
         *,
         alpha_bounds: tuple[float, float] | None = None,
-        energy_tolerance: unit.Quantity | float = DEFAULT_ENERGY_TOLERANCE,
+        energy_tolerance: unit.Quantity | float | None = None,
         max_trials: int = DEFAULT_MAX_TRIALS,
         max_alpha_change: float | None = None,
         alpha_probe: float | None = None,
@@ -324,8 +195,10 @@ class AlphaRattleIntegrator(_EnergyModeProgram, _ConstrainedVerletBase):
             start_alpha = min(max(0.0, low), high)
             energy_settings = (
                 (low, high),
-                to_float(energy_tolerance, unit.kilojoules_per_mole, "energy_tolerance", positive=True),
-                _positive_int(max_trials, "max_trials"),
+                None
+                if energy_tolerance is None
+                else to_float(energy_tolerance, unit.kilojoules_per_mole, "energy_tolerance", positive=True),
+                positive_int(max_trials, "max_trials"),
                 to_dimensionless(max_alpha_change, "max_alpha_change", positive=True),
                 to_dimensionless(alpha_probe, "alpha_probe", positive=True),
                 to_dimensionless(slope_damping, "slope_damping"),
@@ -341,27 +214,33 @@ class AlphaRattleIntegrator(_EnergyModeProgram, _ConstrainedVerletBase):
             if midpoint_tolerance is None:
                 midpoint_tolerance = DEFAULT_MIDPOINT_TOLERANCE
         tolerance = to_float(midpoint_tolerance, unit.nanometers, "midpoint_tolerance", positive=True)
-        max_iterations = _positive_int(max_midpoint_iterations, "max_midpoint_iterations")
+        max_iterations = positive_int(max_midpoint_iterations, "max_midpoint_iterations")
         super().__init__(timestep, constraint_tolerance)
         self.addGlobalVariable("alpha", start_alpha)
         self.addGlobalVariable("midpoint_tolerance", tolerance)
         self.addGlobalVariable("max_midpoint_iterations", max_iterations)
-        self.addGlobalVariable("midpoint_iterations", 0)
-        self.addGlobalVariable("midpoint_change", 0)
-        self.addGlobalVariable("iterate_midpoint", 0)
-        self.addGlobalVariable("previous_midpoint_change", 0)
-        self.addGlobalVariable("ndof", 0)
-        self.addGlobalVariable("midpoint_failed", 0)
-        self.addGlobalVariable("midpoint_failures", 0)
-        self.addGlobalVariable("sum_change2", 0)
+        for name in (
+            "midpoint_iterations",
+            "midpoint_change",
+            "previous_midpoint_change",
+            "need_midpoint",
+            "solving",
+            "ndof",
+            "midpoint_failed",
+            "midpoint_failures",
+            "sum_change2",
+        ):
+            self.addGlobalVariable(name, 0)
         self.addGlobalVariable("order", order)
         for name in ("fstart", "fmid", "x1"):
             self.addPerDofVariable(name, 0)
         if order == 4:
-            for name in ("xstep", "vstep", "xa", "va", "fstart_last"):
+            for name in ("phase", "hsub", "alpha_sub", "substep_done"):
+                self.addGlobalVariable(name, 0)
+            for name in ("xstep", "vstep"):
                 self.addPerDofVariable(name, 0)
         if energy_mode:
-            self._add_energy_mode_variables(*energy_settings)
+            self._add_energy_mode_variables(*energy_settings, order)
         builders = {
             (2, False): self._build_program,
             (4, False): self._build_order4_program,
@@ -370,117 +249,47 @@ class AlphaRattleIntegrator(_EnergyModeProgram, _ConstrainedVerletBase):
         }
         builders[order, energy_mode]()
 
-    _FIRST_FORCES = "(0.5-alpha)*fstart + alpha*fmid"
-    _LAST_FORCES = "alpha*fmid + (0.5-alpha)*f"
-    #: Sub-step sizes of α-RATTLE-4: Ψ^0_{γ1 h} ∘ Ψ^α_{γ2 h} ∘ Ψ^0_{γ1 h}.
-    _OUTER_H = f"({GAMMA1!r}*dt)"
-    _MIDDLE_H = f"({GAMMA2!r}*dt)"
-
     def _build_program(self) -> None:
-        self._add_begin_step()
-        self._add_save_start_force()
-        self._add_position_solve(self._FIRST_FORCES)
-        self.addComputePerDof("x1", "x")
-        self._add_midpoint_iteration()
-        self._add_reject_unconverged_step()
-        self._add_velocity_update(self._LAST_FORCES)
-        self.addComputePerDof("v", "select(midpoint_failed, v0, v)")
+        """Order 2, fixed α: a loop of position solves, each but the last followed by a midpoint force.
+
+        At α = 0 the loop makes one pass without a midpoint force, and the step is the
+        same floating-point operations as :class:`RattleIntegrator`.
+        """
+        self._add_save_step_start(fstart="f", fmid="f")
+        self._add_midpoint_setup("1 - delta(alpha)")
+        self.addComputeGlobal("solving", "1")
+        self.beginWhileBlock("solving > 0.5")
+        self._add_position_solve(first_forces("alpha"), "dt", fallback="x0")
+        self.addComputeGlobal("solving", "need_midpoint")
+        self.beginIfBlock("need_midpoint > 0.5")
+        self._add_midpoint_force("dt", "alpha")
+        self.endBlock()
+        self.endBlock()
+        self._add_velocity_update(last_forces("alpha"), "dt", fallback="v0")
         self._add_end_step()
 
     def _build_order4_program(self) -> None:
-        """α-RATTLE-4 with fixed α: RATTLE (γ1 h), α-RATTLE (γ2 h), RATTLE (γ1 h)."""
-        self._add_begin_step()
-        self._add_save_step_start()
-        self._add_rattle_substep(self._OUTER_H)
-        self._add_substep_start()
-        self._add_save_start_force()
-        self._add_position_solve(self._FIRST_FORCES, self._MIDDLE_H)
-        self.addComputePerDof("x1", "x")
-        self._add_midpoint_iteration(self._MIDDLE_H)
-        self._add_reject_unconverged_step()
-        self._add_velocity_update(self._LAST_FORCES, self._MIDDLE_H)
-        self._add_rattle_substep(self._OUTER_H)
-        self._add_restore_step_start_if_failed()
-        self._add_end_step()
+        """α-RATTLE-4 with fixed α: RATTLE (γ1 h), then a loop over α-RATTLE (γ2 h) and RATTLE (γ1 h).
 
-    def _add_save_step_start(self) -> None:
-        """Keep the state at the start of the whole step (restored if a sub-step fails)."""
-        self.addComputePerDof("xstep", "x")
-        self.addComputePerDof("vstep", "v")
-
-    def _add_substep_start(self) -> None:
-        """Start the next sub-step from the current state: (x0, v0) ← (x, v)."""
-        self.addComputePerDof("x0", "x")
-        self.addComputePerDof("v0", "v")
-
-    def _add_rattle_substep(self, h: str) -> None:
-        """Take a RATTLE sub-step of size ``h`` from the current state (one force evaluation)."""
-        self._add_substep_start()
-        self._add_position_solve("0.5*f", h)
-        self._add_velocity_update("0.5*f", h)
-
-    def _add_restore_step_start_if_failed(self) -> None:
-        self.addComputePerDof("x", "select(midpoint_failed, xstep, x)")
-        self.addComputePerDof("v", "select(midpoint_failed, vstep, v)")
-
-    def _add_save_start_force(self) -> None:
-        """F0 = F(x0), reused from the previous step; predictor takes F(x_m) ≈ F0."""
-        self.addComputePerDof("fstart", "f")
-        self.addComputePerDof("fmid", "fstart")
-        self.addComputeGlobal("midpoint_iterations", "0")
-
-    def _add_midpoint_iteration(self, h: str = "dt") -> None:
-        """Fixed-point iteration x1 ← solve(F((x0 + x1)/2)) to ``midpoint_tolerance``.
-
-        The iteration stops when the RMS change of x1 falls below the tolerance, when
-        it stops decreasing (the round-off floor of single-precision forces, or a
-        divergent iteration), or at the iteration cap. On exit x = x1 is consistent
-        with the last midpoint force. Skipped at α = 0.
+        The last sub-step is inside the loop, before its midpoint block, so that its
+        position constraint precedes the midpoint assignment in program text. A
+        failed midpoint iteration makes both remaining sub-steps return the state
+        the step started from.
         """
-        self.addComputeSum("ndof", "1")
-        self.addComputeGlobal("iterate_midpoint", "(1 - delta(alpha))*step(max_midpoint_iterations - 0.5)")
-        self.addComputeGlobal("midpoint_change", "1e30*(1 - delta(alpha))")
-        self.beginWhileBlock("iterate_midpoint > 0.5")
-        self.addComputeGlobal("previous_midpoint_change", "midpoint_change")
-        self._add_midpoint_pass(h)
-        self.addComputeGlobal("midpoint_iterations", "midpoint_iterations + 1")
-        self.addComputeGlobal(
-            "iterate_midpoint",
-            "step(max_midpoint_iterations - midpoint_iterations - 0.5)"
-            "*step(midpoint_change - midpoint_tolerance)"
-            "*(1 - step(midpoint_change - previous_midpoint_change))",
-        )
+        self._add_save_step_start(xstep="x", vstep="v")
+        self._add_position_solve("0.5*f", OUTER_H)
+        self._add_velocity_update("0.5*f", OUTER_H)
+        self._add_inner_substeps_start("1 - delta(alpha)", fmid="f")
+        self.beginWhileBlock("phase < 3.5")
+        self._add_substep_solve(fallback="xstep")
+        self.beginIfBlock("substep_done > 0.5")
+        self._add_substep_end(fallback="vstep")
         self.endBlock()
-
-    def _add_midpoint_pass(self, h: str = "dt") -> None:
-        """F at the midpoint of (x0, x1), then x1 solved again with it (one force evaluation).
-
-        Leaves x = x1 and ``midpoint_change`` = RMS change of x1 per degree of freedom.
-        """
-        self.addComputePerDof("x", "0.5*(x0 + x1)")
-        self.addComputePerDof("fmid", "f")
-        self._add_count_force_evaluation()
-        self._add_reset_constraint_reference()
-        self._add_position_solve(self._FIRST_FORCES, h)
-        self.addComputeSum("sum_change2", "(x - x1)^2")
-        self.addComputeGlobal("midpoint_change", "sqrt(sum_change2/ndof)")
-        self.addComputePerDof("x1", "x")
-
-    def _add_reject_unconverged_step(self) -> None:
-        """If the last change of x1 exceeds max(1000 × tolerance, 1e-8 nm) or is NaN, stay at x0.
-
-        Stalling below 1e-8 nm RMS is accepted: that is the precision floor of
-        single-precision forces (about 1e-10 nm on the CPU platform), not divergence.
-
-        The remaining steps of the same ``step(n)`` call then repeat the failure
-        without moving, and :meth:`step` raises :class:`MidpointConvergenceError`, so
-        the context keeps the last good state.
-        """
-        self.addComputeGlobal(
-            "midpoint_failed", "1 - step(max(1000*midpoint_tolerance, 1e-8) - midpoint_change)"
-        )
-        self.addComputeGlobal("midpoint_failures", "midpoint_failures + midpoint_failed")
-        self.addComputePerDof("x", "select(midpoint_failed, x0, x)")
+        self.beginIfBlock("need_midpoint > 0.5")
+        self._add_midpoint_force("hsub", "alpha_sub")
+        self.endBlock()
+        self.endBlock()
+        self._add_end_step()
 
     def step(self, steps: int) -> None:
         """Advance by ``steps`` steps; raise if the midpoint iteration failed on the way.
@@ -491,6 +300,10 @@ class AlphaRattleIntegrator(_EnergyModeProgram, _ConstrainedVerletBase):
             If the midpoint iteration did not converge (|α| h²ω²/4 ≳ 1, a tolerance
             below the platform's precision, or non-finite forces or energies). The
             context is left at the start of the failed step.
+        MasslessParticleError
+            If the system has massless particles (virtual sites) and α ≠ 0, the
+            energy mode, or a platform that places virtual sites only at the end of a
+            step (Reference, CPU).
         """
         failures = self.getGlobalVariableByName("midpoint_failures")
         super().step(steps)
@@ -503,6 +316,34 @@ class AlphaRattleIntegrator(_EnergyModeProgram, _ConstrainedVerletBase):
                 f"timestep={self.timestep}). The context was left at the start "
                 "of the failed step. Reduce the timestep or |alpha|, raise midpoint_tolerance if it "
                 "is below the platform's precision, or check the system for overlapping atoms."
+            )
+
+    def _prepare(self, context: mm.Context) -> None:
+        super()._prepare(context)
+        system = context.getSystem()
+        self._set_degrees_of_freedom(3 * (system.getNumParticles() - self._massless_count))
+        if self.energy_mode:
+            self._set_automatic_energy_tolerance(system.getNumParticles(), platforms.force_precision(context))
+
+    def _prepare_without_context(self) -> None:
+        super()._prepare_without_context()
+        atoms = len(self.getPerDofVariableByName("x0"))
+        self._set_degrees_of_freedom(3 * atoms)
+        if self.energy_mode:
+            self._set_automatic_energy_tolerance(atoms, "single")
+
+    def _set_degrees_of_freedom(self, ndof: int) -> None:
+        self.setGlobalVariableByName("ndof", ndof)
+
+    def _check_before_steps(self) -> None:
+        if self._massless_count and (self.energy_mode or self.alpha != 0.0):
+            raise MasslessParticleError(
+                f"{type(self).__name__} with "
+                f"{'the energy mode' if self.energy_mode else f'alpha={self.alpha}'} cannot integrate "
+                f"this system: {self._massless_count} particle(s) have zero mass (virtual sites). "
+                "α ≠ 0 takes a force at the unconstrained midpoint of the step, where no OpenMM "
+                "platform places virtual sites. With virtual sites use alpha=0 (RATTLE, or order=4 for "
+                "triple-jump RATTLE) on CUDA, OpenCL or HIP, or openmm.VerletIntegrator."
             )
 
     # -------------------------------------------------------------- parameters
@@ -537,7 +378,7 @@ class AlphaRattleIntegrator(_EnergyModeProgram, _ConstrainedVerletBase):
     @max_midpoint_iterations.setter
     def max_midpoint_iterations(self, value: int) -> None:
         self.setGlobalVariableByName(
-            "max_midpoint_iterations", _positive_int(value, "max_midpoint_iterations")
+            "max_midpoint_iterations", positive_int(value, "max_midpoint_iterations")
         )
 
     @property
@@ -561,18 +402,12 @@ class AlphaRattleIntegrator(_EnergyModeProgram, _ConstrainedVerletBase):
         return int(self.getGlobalVariableByName("order"))
 
 
-def _positive_int(value: object, name: str) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or value != int(value) or value < 1:
-        raise ValueError(f"{name} must be a positive integer, got {value!r}.")
-    return int(value)
-
-
-_CLASSES_BY_KIND: dict[int, type[_ConstrainedVerletBase]] = {
+_CLASSES_BY_KIND: dict[int, type[_StepProgram]] = {
     cls._kind: cls for cls in (RattleIntegrator, AlphaRattleIntegrator)
 }
 
 
-def restore_integrator(integrator: mm.Integrator) -> _ConstrainedVerletBase:
+def restore_integrator(integrator: mm.Integrator) -> _StepProgram:
     """Give a deserialized or ``Context.getIntegrator()`` object its Python class back.
 
     ``XmlSerializer.deserialize`` and ``Context.getIntegrator`` return a plain
@@ -595,7 +430,7 @@ def restore_integrator(integrator: mm.Integrator) -> _ConstrainedVerletBase:
     TypeError
         If ``integrator`` was not made by this package.
     """
-    if isinstance(integrator, _ConstrainedVerletBase):
+    if isinstance(integrator, _StepProgram):
         return integrator
     kind = None
     if isinstance(integrator, mm.CustomIntegrator):

@@ -345,7 +345,10 @@ def test_unconverged_midpoint_iteration_is_refused_and_leaves_the_last_good_stat
     ctx = make_context(water_box.system, integrator, water_box.positions, water_box.velocities)
     with pytest.raises(MidpointConvergenceError, match="did not converge"):
         integrator.step(3)
-    assert np.array_equal(positions_of(ctx), water_box.positions)
+    # the failed step falls back to its start inside its last constrained solve:
+    # the start state re-constrained, equal to round-off
+    assert np.max(np.abs(positions_of(ctx) - water_box.positions)) < 1e-12
+    assert np.max(np.abs(velocities_of(ctx) - water_box.velocities)) < 1e-12
 
 
 def test_iteration_cap_and_force_evaluation_counts(water_box):

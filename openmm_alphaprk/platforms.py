@@ -1,0 +1,108 @@
+"""What the integrators need to know about the OpenMM platform they run on.
+
+OpenMM runs a ``CustomIntegrator`` step program with two different semantics:
+
+- the **Reference and CPU** platforms (``ReferenceCustomDynamics``): a position
+  constraint projects along the directions of the positions at the previous
+  constraint step; virtual sites are placed only at the end of a step;
+- the **common platform** (CUDA, OpenCL, HIP: ``CommonIntegrateCustomStepKernel``):
+  a position assignment followed in program text by a constraint step is stored as
+  a displacement (forces see the old positions until that constraint step runs), a
+  constraint projects along the directions of the positions stored at that moment,
+  virtual sites are placed at every constraint step, and atoms are reordered and
+  re-wrapped into the box every 250 steps.
+
+The step programs in :mod:`openmm_alphaprk.integrators` are written to give the same
+step under both. What still depends on the platform — whether forces at constrained
+positions see correct virtual sites, and how noisy the ``energy`` the energy mode
+targets is — is decided here, from the context the integrator is bound to.
+"""
+
+from __future__ import annotations
+
+import gc
+
+import openmm as mm
+
+#: Platforms that run OpenMM's common CustomIntegrator implementation.
+COMMON_PLATFORMS = ("CUDA", "OpenCL", "HIP")
+
+#: Standard deviation of a potential energy against the same state in double
+#: precision, σ = a (N/1000)^0.75 kJ/mol for N atoms, by force precision. Measured on
+#: TIP3P boxes (smooth PME, 10 states each; docs/energy_mode.md, "Energy noise"):
+#: CUDA mixed 0.0025 / 0.0098 / 0.028 and single 0.0055 / 0.023 / 0.043 kJ/mol for
+#: 2.6k / 21k / 72k atoms, CPU 0.003 for 2.6k atoms; a = 0.0012 (mixed, CPU) and
+#: 0.0026 (single) bound these. In double precision the noise is round-off (~1e-12
+#: relative) and no limit; there the scale is a tenth of mixed precision's, a target
+#: the controller still reaches in few trials.
+_NOISE_SCALE = {"single": 2.6e-3, "mixed": 1.2e-3, "double": 1.2e-4}
+_NOISE_EXPONENT = 0.75
+#: The energy mode's default tolerance, in units of the noise σ: a target inside the
+#: noise only buys trials that chase round-off.
+TOLERANCE_IN_NOISE_UNITS = 4.0
+#: Smallest default energy tolerance (kJ/mol), for double precision.
+_TOLERANCE_FLOOR = 1e-5
+
+
+def find_context(integrator: mm.Integrator) -> mm.Context | None:
+    """Return the :class:`openmm.Context` an integrator is bound to, or None.
+
+    OpenMM gives an integrator no handle on its context, but the Python ``Context``
+    keeps a reference to its integrator (what ``Context.getIntegrator()`` returns);
+    the context is found through that reference. Called once per integrator.
+    """
+    for referrer in gc.get_referrers(integrator):
+        if isinstance(referrer, mm.Context) and referrer.__dict__.get("_integrator") is integrator:
+            return referrer
+        if isinstance(referrer, dict) and referrer.get("_integrator") is integrator:
+            for owner in gc.get_referrers(referrer):
+                if isinstance(owner, mm.Context):
+                    return owner
+    return None
+
+
+def runs_common_platform(context: mm.Context) -> bool:
+    """Tell whether the context runs OpenMM's common CustomIntegrator code (CUDA, OpenCL, HIP)."""
+    return context.getPlatform().getName() in COMMON_PLATFORMS
+
+
+def force_precision(context: mm.Context) -> str:
+    """'double', 'mixed' or 'single': the precision forces and energies are computed in.
+
+    The CPU platform computes forces in single precision and integrates in double,
+    like the common platform's mixed precision.
+    """
+    platform = context.getPlatform()
+    name = platform.getName()
+    if name == "Reference":
+        return "double"
+    if name == "CPU":
+        return "mixed"
+    if "Precision" in platform.getPropertyNames():
+        return platform.getPropertyValue(context, "Precision").lower()
+    return "single"
+
+
+def energy_noise(n_atoms: int, precision: str) -> float:
+    """Return the expected noise (kJ/mol, one standard deviation) of OpenMM's potential energy.
+
+    Parameters
+    ----------
+    n_atoms
+        Number of particles in the system.
+    precision
+        'single', 'mixed' or 'double' (see :func:`force_precision`).
+    """
+    if precision not in _NOISE_SCALE:
+        raise ValueError(f"precision must be one of {sorted(_NOISE_SCALE)}, got {precision!r}.")
+    return _NOISE_SCALE[precision] * (max(n_atoms, 1) / 1000.0) ** _NOISE_EXPONENT
+
+
+def default_energy_tolerance(n_atoms: int, precision: str) -> float:
+    """Return the energy mode's default |H − E_ref| target (kJ/mol) for a system and precision.
+
+    ``TOLERANCE_IN_NOISE_UNITS`` × :func:`energy_noise`, at least 1e-5 kJ/mol: e.g.
+    0.010 kJ/mol for 2,661 atoms in mixed precision or on the CPU platform, 0.047 for
+    21k atoms, 0.12 for 72k; 0.0010 for 2,661 atoms in double precision.
+    """
+    return max(TOLERANCE_IN_NOISE_UNITS * energy_noise(n_atoms, precision), _TOLERANCE_FLOOR)

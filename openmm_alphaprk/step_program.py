@@ -1,0 +1,376 @@
+"""The pieces every step program of this package is built from, and the rule they obey.
+
+A step is velocity Verlet with SHAKE/SETTLE positions and RATTLE velocities, or the
+α-RATTLE step (design doc §3) whose implicit midpoint force is found by fixed-point
+iteration. Each piece is an ``_add_*`` method that appends computations to the
+``CustomIntegrator``; :meth:`_StepProgram.program_listing` prints the result.
+
+**One program, two semantics** (see :mod:`openmm_alphaprk.platforms`). The pieces
+are ordered so that Reference/CPU and the common platform (CUDA, OpenCL, HIP) take
+the same step:
+
+1. *Every position assignment whose force is read comes after every
+   ``addConstrainPositions()`` in program text.* On the common platform an ``x``
+   assignment with a constraint step anywhere after it in the text is stored as a
+   displacement that forces do not see until that constraint step runs. The
+   position solves are followed by their constraint step (forces are read only
+   after it); the midpoint x_m = (x0 + x1)/2 — the one force taken at unconstrained
+   positions — is set in the last block of the loop, after all constraint steps.
+2. *Every position solve projects along G(x0).* Reference/CPU project along the
+   positions of the previous constraint step, the common platform along the
+   positions stored when the constraint step runs. The midpoint block therefore
+   constrains x0 (a no-op on x0 that makes it the Reference/CPU reference) before
+   setting x_m, and stores x = x0 again after taking the force (the common
+   platform's reference).
+3. *No position is written after the step's last force evaluation*, or the next
+   step would evaluate the force again. A failed step falls back to its start
+   inside the last position solve (``select(midpoint_failed, …)``), not after it.
+"""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import openmm as mm
+import openmm.unit as unit
+
+from . import platforms
+from ._triple_jump import GAMMA1, GAMMA2
+from ._units import to_dimensionless, to_float
+
+#: Sub-step sizes of α-RATTLE-4: Ψ^0_{γ1 h} ∘ Ψ^α_{γ2 h} ∘ Ψ^0_{γ1 h} (design doc §8).
+OUTER_H = f"({GAMMA1!r}*dt)"
+MIDDLE_H = f"({GAMMA2!r}*dt)"
+
+
+def first_forces(alpha: str) -> str:
+    """Force term of the position solve: (½−α) F(x0) + α F(x_m)."""
+    return f"(0.5-{alpha})*fstart + {alpha}*fmid"
+
+
+def last_forces(alpha: str) -> str:
+    """Force term of the velocity update: α F(x_m) + (½−α) F(x1)."""
+    return f"{alpha}*fmid + (0.5-{alpha})*f"
+
+
+#: Name of the global variable that identifies the integrator class in serialized form.
+KIND_VARIABLE = "alphaprk_kind"
+
+_STEP_TYPES = {
+    mm.CustomIntegrator.ComputeGlobal: "global",
+    mm.CustomIntegrator.ComputePerDof: "per-dof",
+    mm.CustomIntegrator.ComputeSum: "sum",
+    mm.CustomIntegrator.ConstrainPositions: "constrain positions",
+    mm.CustomIntegrator.ConstrainVelocities: "constrain velocities",
+    mm.CustomIntegrator.UpdateContextState: "update context state",
+    mm.CustomIntegrator.IfBlockStart: "if",
+    mm.CustomIntegrator.WhileBlockStart: "while",
+    mm.CustomIntegrator.BlockEnd: "end",
+}
+
+
+class MasslessParticleError(RuntimeError):
+    """Raised when a step program cannot be right for a system with massless particles."""
+
+
+class _StepProgram(mm.CustomIntegrator):
+    """Common state, sub-step pieces, platform checks and reporting of this package's integrators.
+
+    Subclasses set ``_kind`` (stored in the global variable :data:`KIND_VARIABLE` so
+    that ``restore_integrator`` can recognise a deserialized integrator) and build
+    their step program from the ``_add_*`` pieces.
+    """
+
+    _kind: ClassVar[int] = 0
+    #: Whether the program has the α-RATTLE midpoint iteration (and its failure count).
+    _has_midpoint: ClassVar[bool] = False
+
+    def __init__(self, timestep: unit.Quantity | float, constraint_tolerance: float) -> None:
+        step_size = to_float(timestep, unit.picoseconds, "timestep", positive=True)
+        tolerance = to_dimensionless(constraint_tolerance, "constraint_tolerance", positive=True)
+        super().__init__(step_size)
+        self.setConstraintTolerance(tolerance)
+        self.addGlobalVariable(KIND_VARIABLE, self._kind)
+        self.addGlobalVariable("force_evaluations", 0)
+        self.addGlobalVariable("steps_taken", 0)
+        self.addGlobalVariable("step_force_evaluations", 0)
+        for name in ("x0", "v0", "massive"):
+            self.addPerDofVariable(name, 0)
+
+    # ------------------------------------------------------------ RATTLE pieces
+    def _add_save_step_start(self, **copies: str) -> None:
+        """Save the starting state (x0, v0) and ``copies``; mark the DOFs the program can move.
+
+        One per-DOF kernel on the common platform (consecutive per-DOF steps merge).
+        """
+        self.addComputeGlobal("step_force_evaluations", "0")
+        self.addComputePerDof("massive", "1")
+        self.addComputePerDof("x0", "x")
+        self.addComputePerDof("v0", "v")
+        for variable, expression in copies.items():
+            self.addComputePerDof(variable, expression)
+
+    def _add_position_solve(self, force_term: str, h: str = "dt", fallback: str | None = None) -> None:
+        """X ← x0 + h v0 + h² M⁻¹(force_term), SHAKE/SETTLE along G(x0); or x ← ``fallback``."""
+        expression = f"x0 + {h}*v0 + {h}*{h}*({force_term})/m"
+        if fallback is not None:
+            expression = f"select(midpoint_failed, {fallback}, {expression})"
+        self.addComputePerDof("x", expression)
+        self.addConstrainPositions()
+
+    def _add_velocity_update(self, force_term: str, h: str = "dt", fallback: str | None = None) -> None:
+        """V ← (x1 − x0)/h + h M⁻¹(force_term), RATTLE projection at x1; or v ← ``fallback``.
+
+        ``force_term`` uses ``f``, the force at x1: the step's (or sub-step's) last
+        force evaluation, reused at the start of the next one.
+        """
+        expression = f"(x - x0)/{h} + {h}*({force_term})/m"
+        if fallback is not None:
+            expression = f"select(midpoint_failed, {fallback}, {expression})"
+        self.addComputePerDof("v", expression)
+        self._add_count_force_evaluation()
+        self.addConstrainVelocities()
+
+    def _add_count_force_evaluation(self) -> None:
+        self.addComputeGlobal("step_force_evaluations", "step_force_evaluations + 1")
+
+    def _add_end_step(self) -> None:
+        if self._has_midpoint:
+            self.addComputeGlobal("midpoint_failures", "midpoint_failures + midpoint_failed")
+        self.addComputeGlobal("force_evaluations", "force_evaluations + step_force_evaluations")
+        self.addComputeGlobal("steps_taken", "steps_taken + 1")
+
+    # ------------------------------------------------------ α-RATTLE's midpoint
+    def _add_midpoint_setup(self, need_midpoint: str) -> None:
+        """Reset the midpoint iteration; ``need_midpoint``: whether the first solve is a predictor."""
+        for name, expression in (
+            ("midpoint_iterations", "0"),
+            ("midpoint_change", "0"),
+            ("previous_midpoint_change", "1e30"),
+            ("midpoint_failed", "0"),
+            ("need_midpoint", need_midpoint),
+        ):
+            self.addComputeGlobal(name, expression)
+
+    def _add_midpoint_force(self, h: str, alpha: str, iterate: bool = True) -> None:
+        """Take F(x_m), x_m = (x0 + x1)/2 with x1 the last solve; decide whether to solve again.
+
+        One force evaluation.
+
+        The body of the last block of a loop (rule 1 of the module docstring). Leaves
+        x = x0, ``fmid`` = F(x_m), ``midpoint_change`` = RMS change per degree of
+        freedom that the new force makes to the next position solve (h²|α ΔF|/m before
+        projection), and ``need_midpoint`` = 0 once that change is below
+        ``midpoint_tolerance``, stops decreasing (the round-off floor, or divergence)
+        or the iteration cap is reached; ``midpoint_failed`` = 1 if it then exceeds
+        max(1000 × tolerance, 1e-8 nm) or is not finite.
+
+        With ``iterate`` false (the energy mode, whose controller converges the
+        midpoint along with α) one pass only, ``need_midpoint`` = 0; and when the
+        global ``restarting`` is set (a new trial of α), x1 is first solved again
+        from x0 with the new α and the previous midpoint force.
+        """
+        self.addComputePerDof("x1", "x")
+        self.addComputePerDof("x", "x0")
+        self.addConstrainPositions()
+        if not iterate:
+            self.addComputePerDof(
+                "x", f"select(restarting, x0 + {h}*v0 + {h}*{h}*({first_forces(alpha)})/m, x0)"
+            )
+            self.addConstrainPositions()
+            self.addComputePerDof("x1", "select(restarting, x, x1)")
+            self.addComputeGlobal("restarting", "0")
+            self.addComputePerDof("x", "x0")  # the reference of the next solve again (Reference/CPU)
+            self.addConstrainPositions()
+        self.addComputePerDof("x", "0.5*(x0 + x1)")
+        self.addComputeSum("sum_change2", f"({h}*{h}*{alpha}*(f - fmid)/m)^2")
+        self.addComputePerDof("fmid", "f")
+        self.addComputePerDof("x", "x0")
+        self._add_count_force_evaluation()
+        self.addComputeGlobal("midpoint_iterations", "midpoint_iterations + 1")
+        self.addComputeGlobal("midpoint_change", "sqrt(sum_change2/max(ndof, 1))")
+        if not iterate:
+            self.addComputeGlobal("need_midpoint", "0")
+            return
+        self.addComputeGlobal(
+            "need_midpoint",
+            "step(max_midpoint_iterations - midpoint_iterations - 0.5)"
+            "*step(midpoint_change - midpoint_tolerance)"
+            "*(1 - step(midpoint_change - previous_midpoint_change))",
+        )
+        self.addComputeGlobal(
+            "midpoint_failed",
+            "max(midpoint_failed, (1 - need_midpoint)*(1 - step(accepted - midpoint_change)));"
+            "accepted = max(1000*midpoint_tolerance, 1e-8)",
+        )
+        self.addComputeGlobal("previous_midpoint_change", "midpoint_change")
+
+    # ------------------------------------------- α-RATTLE-4's inner sub-steps
+    def _add_inner_substeps_start(self, need_midpoint: str, **copies: str) -> None:
+        """Start the middle sub-step (γ2 h, α) here; the loop then takes the last one (γ1 h, 0)."""
+        self.addComputeGlobal("phase", "2")
+        self.addComputeGlobal("hsub", MIDDLE_H)
+        self.addComputeGlobal("alpha_sub", "alpha")
+        self._add_midpoint_setup(need_midpoint)
+        self.addComputePerDof("x0", "x")
+        self.addComputePerDof("v0", "v")
+        self.addComputePerDof("fstart", "f")
+        for variable, expression in copies.items():
+            self.addComputePerDof(variable, expression)
+
+    def _add_substep_solve(self, fallback: str) -> None:
+        """Solve the positions of the current inner sub-step (a predictor or a midpoint re-solve)."""
+        self._add_position_solve(first_forces("alpha_sub"), "hsub", fallback)
+        self.addComputeGlobal("substep_done", "1 - need_midpoint")
+
+    def _add_substep_end(self, fallback: str, **copies: str) -> None:
+        """Body of ``if substep_done``: the velocity update, then start the next sub-step."""
+        self._add_velocity_update(last_forces("alpha_sub"), "hsub", fallback)
+        for variable, expression in copies.items():
+            self.addComputePerDof(variable, expression)
+        self.addComputePerDof("x0", "x")
+        self.addComputePerDof("v0", "v")
+        self.addComputePerDof("fstart", "f")
+        self.addComputeGlobal("phase", "phase + 1")
+        self.addComputeGlobal("hsub", OUTER_H)
+        self.addComputeGlobal("alpha_sub", "0")
+        self.addComputeGlobal("need_midpoint", "0")
+        self.addComputeGlobal("previous_midpoint_change", "1e30")
+
+    # ---------------------------------------------------------------- stepping
+    def step(self, steps: int) -> None:
+        """Advance the context by ``steps`` steps.
+
+        The first call looks up the context the integrator is bound to, prepares
+        the program for its system and platform, and refuses what it cannot do
+        right (see :class:`MasslessParticleError`) before taking a step.
+        """
+        steps = int(steps)
+        if steps <= 0:
+            return
+        if not getattr(self, "_prepared", False):
+            context = platforms.find_context(self)
+            if context is None:
+                self._prepare_without_context()
+                mm.CustomIntegrator.step(self, 1)
+                self._check_massive_after_first_step()
+                steps -= 1
+            else:
+                self._prepare(context)
+            self._prepared = True
+        self._check_before_steps()
+        if steps > 0:
+            mm.CustomIntegrator.step(self, steps)
+
+    def _prepare(self, context: mm.Context) -> None:
+        """Check the system against the platform before the first step (subclasses add more)."""
+        system = context.getSystem()
+        massless = [
+            i
+            for i in range(system.getNumParticles())
+            if system.getParticleMass(i).value_in_unit(unit.dalton) == 0
+        ]
+        self._massless_count = len(massless)
+        self._common_platform = platforms.runs_common_platform(context)
+        if massless and not self._common_platform:
+            raise MasslessParticleError(
+                f"{type(self).__name__} cannot integrate this system on the "
+                f"{context.getPlatform().getName()} platform: {len(massless)} particle(s) have zero "
+                f"mass (first index {massless[0]}), e.g. the M-sites of TIP4P-Ew or OPC water. The "
+                "Reference and CPU platforms place virtual sites only at the end of a CustomIntegrator "
+                "step, so forces taken inside the step would see stale sites. Run it on CUDA, OpenCL or "
+                "HIP (which place them at every constraint step; α = 0 only), use a water model without "
+                "virtual sites (TIP3P, SPC/E), or use openmm.VerletIntegrator."
+            )
+
+    def _prepare_without_context(self) -> None:
+        """Fallback when the bound context cannot be found: check massless particles after a step."""
+        self._massless_count = 0
+        self._common_platform = False
+
+    def _check_massive_after_first_step(self) -> None:
+        massive = self.getPerDofVariableByName("massive")
+        massless = [i for i, flag in enumerate(massive) if flag[0] != 1.0]
+        if massless:
+            raise MasslessParticleError(
+                f"{type(self).__name__} cannot integrate this system: {len(massless)} particle(s) have "
+                f"zero mass (first index {massless[0]}), e.g. virtual sites, and the context this "
+                "integrator is bound to could not be found to check its platform. The context was "
+                "advanced by one step and should be discarded. Use a water model without virtual sites "
+                "(TIP3P, SPC/E) or openmm.VerletIntegrator."
+            )
+
+    def _check_before_steps(self) -> None:
+        """Check before every ``step()`` call after the first (subclasses add to it)."""
+
+    # -------------------------------------------------------------- reporting
+    def program_listing(self) -> str:
+        """Return the step program, one computation per line, indented by block.
+
+        Numbered as OpenMM numbers the computations; useful when checking the block
+        budget or the text order that the common platform's semantics depend on.
+        """
+        lines, depth = [], 0
+        for index in range(self.getNumComputations()):
+            kind, variable, expression = self.getComputationStep(index)
+            name = _STEP_TYPES.get(kind, str(kind))
+            if kind == mm.CustomIntegrator.BlockEnd:
+                depth -= 1
+            text = {
+                "global": f"{variable} = {expression}",
+                "per-dof": f"{variable} = {expression}  (per DOF)",
+                "sum": f"{variable} = sum({expression})",
+                "if": f"if ({expression}):",
+                "while": f"while ({expression}):",
+            }.get(name, name)
+            lines.append(f"{index:3d}  {'    ' * depth}{text}")
+            if kind in (mm.CustomIntegrator.IfBlockStart, mm.CustomIntegrator.WhileBlockStart):
+                depth += 1
+        return "\n".join(lines)
+
+    @property
+    def timestep(self) -> unit.Quantity:
+        """The step size, as a Quantity in picoseconds."""
+        return self.getStepSize()
+
+    @property
+    def constraint_tolerance(self) -> float:
+        """Relative tolerance of SHAKE/CCMA/SETTLE position and velocity constraints."""
+        return self.getConstraintTolerance()
+
+    @property
+    def steps_taken(self) -> int:
+        """Number of steps taken with this integrator."""
+        return int(self.getGlobalVariableByName("steps_taken"))
+
+    @property
+    def force_evaluations(self) -> int:
+        """Force evaluations requested by the step program since it was created.
+
+        The force at the start of a step is the one computed at the end of the
+        previous step and is not counted; OpenMM recomputes it (uncounted) only after
+        the user changes the state, or on CUDA/OpenCL/HIP after it reorders the atoms
+        (every 250 steps).
+        """
+        return int(self.getGlobalVariableByName("force_evaluations"))
+
+    @property
+    def last_step_force_evaluations(self) -> int:
+        """Force evaluations of the last step."""
+        return int(self.getGlobalVariableByName("step_force_evaluations"))
+
+    @property
+    def force_evaluations_per_step(self) -> float:
+        """Mean force evaluations per step (NaN before the first step)."""
+        steps = self.steps_taken
+        return self.force_evaluations / steps if steps else float("nan")
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}(timestep={self.timestep})"
+
+
+def positive_int(value: object, name: str) -> int:
+    """Validate a positive integer argument (floats with integer values are accepted)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or value != int(value) or value < 1:
+        raise ValueError(f"{name} must be a positive integer, got {value!r}.")
+    return int(value)
