@@ -29,13 +29,19 @@ from .waterbox import WaterBox, build_water_box
 
 @dataclass
 class BenchmarkRow:
-    """One integrator's measurements."""
+    """One integrator's measurements.
+
+    ``time_ratio`` is against the first row; ``ratio_per_evaluation`` is the step time
+    per force evaluation against RattleIntegrator's (NaN without that row).
+    """
 
     name: str
     ms_per_step: float
     time_ratio: float
     force_evaluations_per_step: float
     energy_rms: float
+    ratio_per_evaluation: float = float("nan")
+    host_syncs_per_step: float = 0.0
 
 
 def default_integrators(timestep: float) -> dict[str, Callable[[], mm.Integrator]]:
@@ -49,13 +55,32 @@ def default_integrators(timestep: float) -> dict[str, Callable[[], mm.Integrator
     }
 
 
+def all_integrators(timestep: float) -> dict[str, Callable[[], mm.Integrator]]:
+    """Return the core set, α-RATTLE-4 (α = 0 and 0.05) and both energy modes: every program."""
+    return {
+        **default_integrators(timestep),
+        "AlphaRattle-4 a=0": lambda: AlphaRattleIntegrator(timestep, alpha=0.0, order=4),
+        "AlphaRattle-4 a=0.05": lambda: AlphaRattleIntegrator(timestep, alpha=0.05, order=4),
+        "energy (order 2)": lambda: AlphaRattleIntegrator(timestep, alpha="energy"),
+        "energy4": lambda: AlphaRattleIntegrator(timestep, alpha="energy", order=4),
+    }
+
+
+#: Integrator sets of ``--integrators``.
+INTEGRATOR_SETS = {"core": default_integrators, "all": all_integrators}
+
+
 def _context(
-    box: WaterBox, integrator: mm.Integrator, platform: mm.Platform, tolerance: float | None = None
+    box: WaterBox,
+    integrator: mm.Integrator,
+    platform: mm.Platform,
+    tolerance: float | None = None,
+    properties: dict[str, str] | None = None,
 ) -> mm.Context:
     """Make a context at the box's state; ``tolerance`` (if given) sets the constraint tolerance."""
     if tolerance is not None:
         integrator.setConstraintTolerance(tolerance)
-    context = mm.Context(box.system, integrator, platform)
+    context = mm.Context(box.system, integrator, platform, properties or {})
     context.setPositions(box.positions)
     context.setVelocities(box.velocities)
     return context
@@ -100,6 +125,7 @@ def run_benchmark(
     energy_steps: int = 100,
     constraint_tolerance: float = 1e-8,
     progress: bool = True,
+    properties: dict[str, str] | None = None,
 ) -> list[BenchmarkRow]:
     """Time each integrator and measure its energy fluctuation on the same state.
 
@@ -121,6 +147,8 @@ def run_benchmark(
         Applied to every integrator.
     progress
         Print progress to stderr.
+    properties
+        Platform properties (e.g. ``{"Precision": "mixed"}``).
 
     Returns
     -------
@@ -134,10 +162,11 @@ def run_benchmark(
     runs = {}
     for name, make in integrators.items():
         integrator = make()
-        runs[name] = integrator, _context(box, integrator, plat, constraint_tolerance)
+        runs[name] = integrator, _context(box, integrator, plat, constraint_tolerance, properties)
     for integrator, _ in runs.values():
         integrator.step(2)  # program analysis and first force evaluations
     evaluations_before = {name: _force_evaluations(integrator) for name, (integrator, _) in runs.items()}
+    syncs_before = {name: _host_syncs(integrator) for name, (integrator, _) in runs.items()}
     medians = interleaved_timing(
         {name: (integrator, 1) for name, (integrator, _) in runs.items()}, steps, rounds, progress
     )
@@ -149,13 +178,18 @@ def run_benchmark(
             (evaluations - evaluations_before[name]) / (steps * rounds) if evaluations is not None else 1.0
         )
         ms = medians[name]
-        rows.append(BenchmarkRow(name, ms, ms / baseline, per_step, float("nan")))
+        syncs = (_host_syncs(integrator) - syncs_before[name]) / (steps * rounds)
+        rows.append(BenchmarkRow(name, ms, ms / baseline, per_step, float("nan"), host_syncs_per_step=syncs))
+    rattle = medians.get("RattleIntegrator")
+    for row in rows:
+        if rattle:
+            row.ratio_per_evaluation = row.ms_per_step / row.force_evaluations_per_step / rattle
     del runs
     for row, make in zip(rows, integrators.values()):
         if progress:
             print(f"energy pass: {row.name}", file=sys.stderr, flush=True)
         integrator = make()
-        context = _context(box, integrator, plat, constraint_tolerance)
+        context = _context(box, integrator, plat, constraint_tolerance, properties)
         e0 = _total_energy(context)
         residuals = []
         for _ in range(energy_steps):
@@ -172,15 +206,30 @@ def _force_evaluations(integrator: mm.Integrator) -> int | None:
     return None
 
 
+def _host_syncs(integrator: mm.Integrator) -> float:
+    """Return the sums over degrees of freedom counted by our integrators (0 for others)."""
+    if isinstance(integrator, _StepProgram):
+        return integrator.getGlobalVariableByName("host_syncs")
+    return 0.0
+
+
 def format_table(rows: Sequence[BenchmarkRow], header: str = "") -> str:
     """Format benchmark rows as a plain-text table."""
     lines = [header] if header else []
-    columns = ("ms/step", 9), ("time ratio", 11), ("force evals/step", 17), ("RMS(H-E0) kJ/mol", 17)
-    lines.append(f"{'integrator':<20} " + " ".join(f"{title:>{width}}" for title, width in columns))
+    columns = (
+        ("ms/step", 9),
+        ("time ratio", 11),
+        ("force evals/step", 17),
+        ("per eval vs RATTLE", 19),
+        ("syncs/step", 11),
+        ("RMS(H-E0) kJ/mol", 17),
+    )
+    lines.append(f"{'integrator':<22} " + " ".join(f"{title:>{width}}" for title, width in columns))
     for row in rows:
         lines.append(
-            f"{row.name:<20} {row.ms_per_step:>9.2f} {row.time_ratio:>11.2f} "
-            f"{row.force_evaluations_per_step:>17.2f} {row.energy_rms:>17.4f}"
+            f"{row.name:<22} {row.ms_per_step:>9.3f} {row.time_ratio:>11.2f} "
+            f"{row.force_evaluations_per_step:>17.2f} {row.ratio_per_evaluation:>19.2f} "
+            f"{row.host_syncs_per_step:>11.2f} {row.energy_rms:>17.4f}"
         )
     return "\n".join(lines)
 
@@ -195,6 +244,26 @@ def add_box_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--timestep", type=float, default=2.0, help="step size in fs (default 2)")
     parser.add_argument("--platform", default="CPU", help="OpenMM platform (default CPU)")
+    parser.add_argument(
+        "--precision",
+        choices=("single", "mixed", "double"),
+        default=None,
+        help="precision on CUDA, OpenCL or HIP (default: the platform's, single)",
+    )
+
+
+def build_platform(args: argparse.Namespace) -> str:
+    """Platform to build and equilibrate the box on: the benchmark's, except OpenCL (CPU).
+
+    OpenMM's energy minimizer crashes on OpenCL through pocl (seen with OpenMM 8.6.1),
+    the OpenCL platform CI has.
+    """
+    return "CPU" if args.platform == "OpenCL" else args.platform
+
+
+def platform_properties(args: argparse.Namespace) -> dict[str, str]:
+    """Platform properties from ``--precision`` (only on platforms that have one)."""
+    return {"Precision": args.precision} if args.precision else {}
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -217,26 +286,38 @@ def main(argv: Sequence[str] | None = None) -> int:
         default=1000,
         help="2 fs Langevin steps at 300 K first (default 1000)",
     )
+    parser.add_argument(
+        "--integrators",
+        choices=sorted(INTEGRATOR_SETS),
+        default="core",
+        help="core: Verlet, RATTLE, α = 0, 1/6, 1/2; all: also α-RATTLE-4 and the energy modes",
+    )
     parser.add_argument("--json", help="also write the rows to this JSON file")
     args = parser.parse_args(argv)
     if args.box <= 0 or args.timestep <= 0 or args.steps <= 0 or args.rounds <= 0:
         parser.error("--box, --timestep, --steps and --rounds must be positive")
     print(f"building a {args.box} nm TIP3P box ...", file=sys.stderr, flush=True)
     box = build_water_box(
-        args.box, cutoff=args.cutoff, equilibration_steps=args.equilibration_steps, platform=args.platform
+        args.box,
+        cutoff=args.cutoff,
+        equilibration_steps=args.equilibration_steps,
+        platform=build_platform(args),
     )
     timestep = args.timestep / 1000.0
     rows = run_benchmark(
         box,
-        default_integrators(timestep),
+        INTEGRATOR_SETS[args.integrators](timestep),
         platform=args.platform,
         steps=args.steps,
         rounds=args.rounds,
         energy_steps=args.energy_steps,
+        properties=platform_properties(args),
     )
+    precision = f" ({args.precision} precision)" if args.precision else ""
     header = (
         f"TIP3P box {args.box} nm, {box.n_atoms} atoms, PME cutoff {args.cutoff} nm, {args.timestep} fs, "
-        f"platform {args.platform}; time ratio against {rows[0].name}; median of {args.rounds} rounds "
+        f"platform {args.platform}{precision}; time ratio against {rows[0].name}; "
+        f"per eval: ms/step per force evaluation against RattleIntegrator's; median of {args.rounds} rounds "
         f"x {args.steps} steps; RMS(H-E0) over {args.energy_steps} steps (VerletIntegrator's kinetic "
         "energy is its leapfrog estimate)"
     )

@@ -120,11 +120,13 @@ def compare(
             system,
             cache_dir=cache_dir,
             progress=progress,
-            check=lambda built: [check_compatible(spec, built, repr(str(system))) for spec in specs],
+            check=lambda built: [
+                check_compatible(spec, built, repr(str(system)), platform) for spec in specs
+            ],
         )
     )
     for spec in specs:
-        check_compatible(spec, prepared.system, repr(prepared.name))
+        check_compatible(spec, prepared.system, repr(prepared.name), platform)
     kwargs = dict(
         steps=steps,
         timestep=timestep_ps,

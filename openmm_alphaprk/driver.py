@@ -222,13 +222,13 @@ def run_nve(
     output = Path(output)
     prepared = system if isinstance(system, PreparedSystem) else None
     if prepared is not None:
-        check_compatible(spec, prepared.system, repr(prepared.name))
+        check_compatible(spec, prepared.system, repr(prepared.name), platform)
     else:
         prepared = prepare_system(
             system,
             cache_dir=cache_dir,
             progress=progress,
-            check=lambda built: check_compatible(spec, built, repr(str(system))),
+            check=lambda built: check_compatible(spec, built, repr(str(system)), platform),
         )
     parameters = run_parameters(
         prepared,

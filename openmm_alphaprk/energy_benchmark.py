@@ -27,7 +27,14 @@ import openmm as mm
 import openmm.unit as unit
 from tqdm import tqdm
 
-from .benchmark import _context, _total_energy, add_box_arguments, interleaved_timing
+from .benchmark import (
+    _context,
+    _total_energy,
+    add_box_arguments,
+    build_platform,
+    interleaved_timing,
+    platform_properties,
+)
 from .integrators import AlphaRattleIntegrator, RattleIntegrator
 from .waterbox import WaterBox, build_water_box
 
@@ -48,6 +55,7 @@ class EnergyRow:
     fraction_within_tolerance: float = float("nan")
     fraction_fallen_back: float = float("nan")
     fraction_at_bound: float = float("nan")
+    reference_resets: int | None = None
     blew_up_at_step: int | None = None
 
 
@@ -108,9 +116,10 @@ def _run_one(
     dof: int,
     progress: bool,
     every: int = 1,
+    properties: dict[str, str] | None = None,
 ) -> tuple[EnergyRow, np.ndarray, mm.Integrator, mm.Context]:
     integrator = spec.make()
-    context = _context(box, integrator, plat)
+    context = _context(box, integrator, plat, properties=properties)
     step_ps = integrator.getStepSize().value_in_unit(unit.picoseconds) * spec.substeps * every
     e_ref = _total_energy(context)
     residuals = np.full(samples, np.nan)
@@ -148,6 +157,7 @@ def _run_one(
         row.fraction_within_tolerance = totals["fraction_within_tolerance"]
         row.fraction_fallen_back = totals["fraction_fallen_back"]
         row.fraction_at_bound = totals["steps_at_bound"] / max(totals["steps"], 1)
+        row.reference_resets = totals["reference_resets"]
     return row, residuals, integrator, context
 
 
@@ -170,6 +180,7 @@ def run_energy_benchmark(
     timing_steps: int = 100,
     timing_rounds: int = 3,
     progress: bool = True,
+    properties: dict[str, str] | None = None,
 ) -> tuple[list[EnergyRow], dict[str, np.ndarray]]:
     """Run each integrator for ``steps`` steps from the same state; time them after.
 
@@ -193,6 +204,8 @@ def run_energy_benchmark(
         The interleaved timing rounds (no energy read-out) for the ms/step column.
     progress
         Progress bars on stderr.
+    properties
+        Platform properties (e.g. ``{"Precision": "mixed"}``).
 
     Returns
     -------
@@ -210,7 +223,7 @@ def run_energy_benchmark(
         name = names.pop(0)
         spec = integrators[name]
         row, residuals, integrator, context = _run_one(
-            name, spec, box, plat, steps // sample_every, dof, progress, sample_every
+            name, spec, box, plat, steps // sample_every, dof, progress, sample_every, properties
         )
         rows.append(row)
         traces[name] = residuals
@@ -241,6 +254,7 @@ def largest_stable_step(
     *,
     platform: str = "CPU",
     time_ps: float = 1.0,
+    properties: dict[str, str] | None = None,
 ) -> tuple[float | None, dict[float, str]]:
     """Step-size scan: the largest step (fs) of ``steps_fs`` that runs ``time_ps`` without blowing up.
 
@@ -259,7 +273,7 @@ def largest_stable_step(
     largest, outcomes = None, {}
     for h_fs in sorted(steps_fs):
         integrator = make(h_fs / 1000.0)
-        context = _context(box, integrator, plat)
+        context = _context(box, integrator, plat, properties=properties)
         e_ref = _total_energy(context)
         n = int(round(time_ps / (h_fs / 1000.0)))
         worst, failure = 0.0, None
@@ -288,8 +302,8 @@ def format_table(rows: Sequence[EnergyRow], header: str = "") -> str:
     lines = [header] if header else []
     lines.append(
         f"{'integrator':<16} {'steps':>6} {'drift/dof':>10} {'RMS(H-Eref)':>11} {'max|H-Eref|':>11} "
-        f"{'evals/step':>10} {'time ratio':>10} {'within tol':>10} {'fell back':>9} {'at bound':>8}  "
-        "alpha* p5/p50/p95"
+        f"{'evals/step':>10} {'time ratio':>10} {'within tol':>10} {'fell back':>9} {'at bound':>8} "
+        f"{'E_ref':>5}  alpha* p5/p50/p95"
     )
     for row in rows:
         alpha = (
@@ -301,7 +315,8 @@ def format_table(rows: Sequence[EnergyRow], header: str = "") -> str:
             f"{row.name:<16} {row.steps:>6} {row.drift_per_dof:>10.2e} {row.rms_residual:>11.4f} "
             f"{row.max_abs_residual:>11.4f} {row.force_evaluations_per_step:>10.2f} {row.time_ratio:>10.2f} "
             f"{row.fraction_within_tolerance:>10.3f} {row.fraction_fallen_back:>9.3f} "
-            f"{row.fraction_at_bound:>8.3f}  "
+            f"{row.fraction_at_bound:>8.3f} "
+            f"{'-' if row.reference_resets is None else row.reference_resets:>5}  "
             f"{alpha}"
             + (f"  BLEW UP at step {row.blew_up_at_step}" if row.blew_up_at_step is not None else "")
         )
@@ -368,20 +383,26 @@ def main(argv: Sequence[str] | None = None) -> int:
         cutoff=args.cutoff,
         equilibration_steps=args.equilibration_steps,
         seed=args.seed,
-        platform=args.platform,
+        platform=build_platform(args),
     )
     steps = int(round(args.time / args.timestep * 1000.0))
     if args.sample_every < 1:
         parser.error("--sample-every must be a positive integer")
     rows, traces = run_energy_benchmark(
-        box, integrators, platform=args.platform, steps=steps, sample_every=args.sample_every
+        box,
+        integrators,
+        platform=args.platform,
+        steps=steps,
+        sample_every=args.sample_every,
+        properties=platform_properties(args),
     )
+    precision = f" ({args.precision} precision)" if args.precision else ""
     header = (
         f"TIP3P box {args.box} nm, {box.n_atoms} atoms, {degrees_of_freedom(box.system)} DOF, PME cutoff "
         f"{args.cutoff} nm (LJ switched, Ewald tolerance 1e-5), {args.timestep} fs, {args.time} ps NVE, "
-        f"platform {args.platform}; energy read every {args.sample_every} step(s); drift in kJ/mol/ns "
-        "per DOF (linear fit); energies in kJ/mol; time ratio against RATTLE (median of 3 x 100 timed "
-        "steps, no energy read-out)"
+        f"platform {args.platform}{precision}; energy read every {args.sample_every} step(s); "
+        "drift in kJ/mol/ns per DOF (linear fit); energies in kJ/mol; time ratio against RATTLE "
+        "(median of 3 x 100 timed steps, no energy read-out)"
     )
     print(format_table(rows, header), flush=True)
     result = {"header": header, "rows": [asdict(row) for row in rows]}
@@ -397,7 +418,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         for name, make in makers.items():
             if name not in integrators:
                 continue
-            largest, outcomes = largest_stable_step(box, make, args.scan, platform=args.platform)
+            largest, outcomes = largest_stable_step(
+                box, make, args.scan, platform=args.platform, properties=platform_properties(args)
+            )
             result["scan"][name] = {
                 "largest_fs": largest,
                 "outcomes": {str(k): v for k, v in outcomes.items()},

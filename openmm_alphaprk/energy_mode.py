@@ -191,9 +191,10 @@ class _EnergyModeProgram(_StepProgram):
         warm-started from the previous trial) and the last RATTLE sub-step: three
         force evaluations per trial.
         """
-        self._add_save_step_start(xstep="x", vstep="v")
+        # F(x0) is read before the reference check's energy: see _add_reference_check
+        self._add_save_step_start(xstep="x", vstep="v", fstart="f")
         self._add_reference_check()
-        self._add_position_solve("0.5*f", OUTER_H)
+        self._add_position_solve("0.5*fstart", OUTER_H)
         self._add_velocity_update("0.5*f", OUTER_H)
         self._add_controller_start()
         # the midpoint force's offset from the sub-step's start force changes little between steps
@@ -231,10 +232,16 @@ class _EnergyModeProgram(_StepProgram):
         degrees of freedom, zero when nothing moved) opens the block; inside it the
         energy decides: the common platform's reordering and re-wrapping of atoms move
         coordinates but keep the energy.
+
+        The force at x0 must have been read (copied) before this block: on CUDA and
+        OpenCL an ``energy`` read that is the first evaluation of a step computes the
+        energy alone and still marks the forces valid, so a later ``f`` would be
+        wrong (measured on an H100 and NVIDIA's OpenCL: +32 kJ/mol in one step; not
+        seen with pocl).
         """
-        self.addComputeSum("state_moved", "(x - xend)^2 + (v - vend)^2")
+        self._add_sum("state_moved", "(x - xend)^2 + (v - vend)^2")
         self.beginIfBlock("state_moved + 1 - reference_set > 0")
-        self.addComputeSum("kinetic_energy", "0.5*m*v*v")
+        self._add_sum("kinetic_energy", "0.5*m*v*v")
         self.addComputeGlobal("start_energy", "energy + kinetic_energy")
         self.addComputeGlobal(
             "retake",
@@ -264,7 +271,7 @@ class _EnergyModeProgram(_StepProgram):
         first sub-step at order 4) and goes straight to its midpoint block, which
         solves x1 with the new α before taking the midpoint force.
         """
-        self.addComputeSum("kinetic_energy", "0.5*m*v*v")
+        self._add_sum("kinetic_energy", "0.5*m*v*v")
         self.addComputeGlobal("residual", "energy + kinetic_energy - reference_energy")
         self.addComputeGlobal("trials", "trials + 1")
         self._add_alpha_update()

@@ -34,6 +34,7 @@ import openmm as mm
 import openmm.unit as unit
 
 from .integrators import AlphaRattleIntegrator, RattleIntegrator
+from .platforms import COMMON_PLATFORMS
 
 INTEGRATOR_NAMES = ("rattle", "alpha=<number>", "energy", "alpha4=<number>", "energy4", "verlet")
 
@@ -71,10 +72,17 @@ class IntegratorSpec:
         """Canonical name (``alpha=0.1666…`` keeps the user's fraction text)."""
         return self.text or self.kind
 
-    @property
-    def needs_massive_particles(self) -> bool:
-        """True for this package's CustomIntegrators, which refuse virtual sites."""
-        return self.kind != "verlet"
+    def supports_virtual_sites(self, platform: str) -> bool:
+        """Tell whether the integrator is right for systems with virtual sites on ``platform``.
+
+        VerletIntegrator everywhere; RATTLE and α = 0 (order 2 or 4) on CUDA, OpenCL and
+        HIP, which place virtual sites at every constraint step; nothing else (α ≠ 0
+        takes a force at the unconstrained midpoint, where no platform places them).
+        """
+        if self.kind == "verlet":
+            return True
+        at_constrained_positions = self.kind == "rattle" or (self.kind == "alpha" and self.alpha == 0.0)
+        return at_constrained_positions and platform in COMMON_PLATFORMS
 
     @property
     def velocity_verlet(self) -> bool:
@@ -131,27 +139,39 @@ def make_integrator(
     return integrator
 
 
-def check_compatible(spec: str | IntegratorSpec, system: mm.System, system_name: str = "this system") -> None:
-    """Refuse, before any step, an integrator that cannot integrate ``system``.
+def check_compatible(
+    spec: str | IntegratorSpec, system: mm.System, system_name: str = "this system", platform: str = "CPU"
+) -> None:
+    """Refuse, before any step, an integrator that cannot integrate ``system`` on ``platform``.
 
     Raises
     ------
     IncompatibleSystemError
-        If ``system`` has massless particles (virtual sites) and ``spec`` is one of
-        this package's CustomIntegrators.
+        If ``system`` has massless particles (virtual sites) and ``spec`` cannot be
+        right for them on ``platform`` (see :meth:`IntegratorSpec.supports_virtual_sites`).
     """
     spec = parse_integrator(spec)
-    if not spec.needs_massive_particles:
+    if spec.supports_virtual_sites(platform):
         return
     massless = sum(
         system.getParticleMass(i).value_in_unit(unit.dalton) == 0 or system.isVirtualSite(i)
         for i in range(system.getNumParticles())
     )
-    if massless:
-        raise IncompatibleSystemError(
-            f"integrator {spec.name!r} cannot run {system_name}: it has {massless} massless particle(s) "
-            "(virtual sites, e.g. TIP4P-Ew M-sites). OpenMM places virtual sites only at the end of a "
-            "CustomIntegrator step on the Reference and CPU platforms, so RATTLE and alpha-RATTLE would "
-            "use wrong forces. Use --integrator verlet for this system, or a 3-site water model "
-            "(tip3p-*, spce-3nm)."
+    if not massless:
+        return
+    if spec.kind in ("rattle", "alpha") and (spec.kind == "rattle" or spec.alpha == 0.0):
+        reason = (
+            f"on the {platform} platform OpenMM places virtual sites only at the end of a CustomIntegrator "
+            "step, so forces inside the step would see stale sites. Run it with --platform CUDA, OpenCL "
+            "or HIP (which place them at every constraint step)"
         )
+    else:
+        reason = (
+            "α ≠ 0 and the energy modes take a force at the unconstrained midpoint of the step, where no "
+            "OpenMM platform places virtual sites. Use rattle or alpha4=0 on CUDA, OpenCL or HIP"
+        )
+    raise IncompatibleSystemError(
+        f"integrator {spec.name!r} cannot run {system_name}: it has {massless} massless particle(s) "
+        f"(virtual sites, e.g. TIP4P-Ew M-sites); {reason}, use the integrator verlet "
+        "(openmm.VerletIntegrator, any platform), or a 3-site water model (tip3p-*, spce-3nm)."
+    )

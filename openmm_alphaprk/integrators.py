@@ -129,10 +129,11 @@ class AlphaRattleIntegrator(_EnergyModeProgram):
     energy_tolerance
         Energy mode: target |H − E_ref| after each step (Quantity or kJ/mol). The
         default (None) is set at the first step from the system's size and the
-        platform's precision, 4× the measured noise of OpenMM's energy
-        (:func:`openmm_alphaprk.platforms.default_energy_tolerance`): 0.010 kJ/mol for
-        2,661 atoms in mixed precision or on the CPU platform, 0.047 for 21k atoms,
-        about 1e-5 in double precision. A target inside the noise only buys trials.
+        platform's precision, 3× the measured noise of OpenMM's energy
+        (:func:`openmm_alphaprk.platforms.default_energy_tolerance`): 0.011 kJ/mol for
+        2,661 atoms in mixed precision or on the CPU platform, 0.053 for 21k atoms,
+        0.00075 for 2,661 atoms in double precision (Reference). A target inside the
+        noise only buys trials that chase round-off.
     max_trials
         Energy mode: trials per step that may change α; after them α is frozen
         and further trials only converge the midpoint force.
@@ -259,10 +260,13 @@ class AlphaRattleIntegrator(_EnergyModeProgram):
         self._add_midpoint_setup("1 - delta(alpha)")
         self.addComputeGlobal("solving", "1")
         self.beginWhileBlock("solving > 0.5")
+        # set before the solve, so that no global changes between it and the velocity
+        # update at α = 0 (a changed global is uploaded before the next kernel using one)
+        self.addComputeGlobal("solving", "0")
         self._add_position_solve(first_forces("alpha"), "dt", fallback="x0")
-        self.addComputeGlobal("solving", "need_midpoint")
         self.beginIfBlock("need_midpoint > 0.5")
         self._add_midpoint_force("dt", "alpha")
+        self.addComputeGlobal("solving", "1")
         self.endBlock()
         self.endBlock()
         self._add_velocity_update(last_forces("alpha"), "dt", fallback="v0")
@@ -276,8 +280,8 @@ class AlphaRattleIntegrator(_EnergyModeProgram):
         failed midpoint iteration makes both remaining sub-steps return the state
         the step started from.
         """
-        self._add_save_step_start(xstep="x", vstep="v")
-        self._add_position_solve("0.5*f", OUTER_H)
+        self._add_save_step_start(xstep="x", vstep="v", fstart="f")
+        self._add_position_solve("0.5*fstart", OUTER_H)
         self._add_velocity_update("0.5*f", OUTER_H)
         self._add_inner_substeps_start("1 - delta(alpha)", fmid="f")
         self.beginWhileBlock("phase < 3.5")

@@ -94,6 +94,7 @@ class _StepProgram(mm.CustomIntegrator):
         self.addGlobalVariable("force_evaluations", 0)
         self.addGlobalVariable("steps_taken", 0)
         self.addGlobalVariable("step_force_evaluations", 0)
+        self.addGlobalVariable("host_syncs", 0)
         for name in ("x0", "v0", "massive"):
             self.addPerDofVariable(name, 0)
 
@@ -130,6 +131,15 @@ class _StepProgram(mm.CustomIntegrator):
         self.addComputePerDof("v", expression)
         self._add_count_force_evaluation()
         self.addConstrainVelocities()
+
+    def _add_sum(self, variable: str, expression: str) -> None:
+        """Sum over degrees of freedom into a global, counted in ``host_syncs``.
+
+        On the common platform every sum downloads its value: a full synchronisation
+        of the device with the host, the cost the program keeps count of.
+        """
+        self.addComputeSum(variable, expression)
+        self.addComputeGlobal("host_syncs", "host_syncs + 1")
 
     def _add_count_force_evaluation(self) -> None:
         self.addComputeGlobal("step_force_evaluations", "step_force_evaluations + 1")
@@ -183,7 +193,7 @@ class _StepProgram(mm.CustomIntegrator):
             self.addComputePerDof("x", "x0")  # the reference of the next solve again (Reference/CPU)
             self.addConstrainPositions()
         self.addComputePerDof("x", "0.5*(x0 + x1)")
-        self.addComputeSum("sum_change2", f"({h}*{h}*{alpha}*(f - fmid)/m)^2")
+        self._add_sum("sum_change2", f"({h}*{h}*{alpha}*(f - fmid)/m)^2")
         self.addComputePerDof("fmid", "f")
         self.addComputePerDof("x", "x0")
         self._add_count_force_evaluation()
@@ -353,6 +363,17 @@ class _StepProgram(mm.CustomIntegrator):
         (every 250 steps).
         """
         return int(self.getGlobalVariableByName("force_evaluations"))
+
+    @property
+    def host_syncs_per_step(self) -> float:
+        """Mean sums over degrees of freedom per step (NaN before the first step).
+
+        Each is a device-to-host synchronisation on CUDA, OpenCL and HIP. Reading
+        ``energy`` in the program is not counted: on those platforms the energy comes
+        with the force evaluation that needs it.
+        """
+        steps = self.steps_taken
+        return self.getGlobalVariableByName("host_syncs") / steps if steps else float("nan")
 
     @property
     def last_step_force_evaluations(self) -> int:
