@@ -27,7 +27,7 @@ run = Path(args.run) if args.run else Path("analysis-example-run")
 if args.run is None:
     run_nve("tip3p-2nm", "rattle", run, steps=args.steps, energy_interval=5, trajectory_interval=10)
 
-system = mm.XmlSerializer.deserialize((run / "system.xml").read_text())
+system = mm.XmlSerializer.deserialize((run / "system.xml").read_text(encoding="utf-8"))
 universe = mda.Universe(str(run / "topology.pdb"), str(run / "trajectory.dcd"))
 
 deviation = ConstraintDeviation.from_system(universe, system).run()

@@ -323,7 +323,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     print(format_table(rows, header))
     if args.json:
-        with open(args.json, "w") as handle:
+        with open(args.json, "w", encoding="utf-8") as handle:
             json.dump({"header": header, "rows": [asdict(row) for row in rows]}, handle, indent=2)
     return 0
 

@@ -177,7 +177,7 @@ def compare(
         )
         + "\n"
     )
-    (output / "table.txt").write_text(table + "\n")
+    (output / "table.txt").write_text(table + "\n", encoding="utf-8")
     return Comparison(prepared.name, summaries, table, output, figure)
 
 

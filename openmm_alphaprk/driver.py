@@ -257,7 +257,9 @@ def run_nve(
     output.mkdir(parents=True, exist_ok=True)
     rundir.write_parameters(output, parameters)
     if not resume:
-        (output / rundir.SYSTEM_FILE).write_text(mm.XmlSerializer.serialize(prepared.system))
+        (output / rundir.SYSTEM_FILE).write_text(
+            mm.XmlSerializer.serialize(prepared.system), encoding="utf-8"
+        )
         with open(output / rundir.TOPOLOGY_FILE, "w") as handle:
             app.PDBFile.writeFile(prepared.topology, prepared.state.getPositions(), handle, keepIds=True)
 
@@ -278,12 +280,12 @@ def run_nve(
             simulation.context.setVelocitiesToTemperature(kelvin * unit.kelvin, velocity_seed)
             simulation.context.applyVelocityConstraints(tolerance)
             start = simulation.context.getState(getPositions=True, getVelocities=True)
-            (output / rundir.START_STATE_FILE).write_text(mm.XmlSerializer.serialize(start))
+            (output / rundir.START_STATE_FILE).write_text(mm.XmlSerializer.serialize(start), encoding="utf-8")
         simulation.context.setStepCount(0)
         simulation.context.setTime(0.0)
         start_step = 0
     if start_step >= steps and (output / rundir.SUMMARY_FILE).is_file():
-        return RunSummary(**json.loads((output / rundir.SUMMARY_FILE).read_text()))
+        return RunSummary(**json.loads((output / rundir.SUMMARY_FILE).read_text(encoding="utf-8")))
     (output / rundir.SUMMARY_FILE).unlink(missing_ok=True)  # an extended run is not complete until it ends
 
     reporters = _reporters(output, spec, intervals, append=resume)
@@ -474,7 +476,11 @@ def _momentum_change(prepared: PreparedSystem, final: mm.State, output: Path) ->
     velocities were drawn anew (``velocity_seed``).
     """
     start_file = output / rundir.START_STATE_FILE
-    start = mm.XmlSerializer.deserialize(start_file.read_text()) if start_file.is_file() else prepared.state
+    start = (
+        mm.XmlSerializer.deserialize(start_file.read_text(encoding="utf-8"))
+        if start_file.is_file()
+        else prepared.state
+    )
     p0, l0 = _momenta(prepared.system, start)
     p1, l1 = _momenta(prepared.system, final)
     return {

@@ -428,7 +428,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             detail = "; ".join(f"{h:g} fs {text}" for h, text in outcomes.items())
             print(f"  {name:<20} {largest} fs   ({detail})", flush=True)
     if args.json:
-        with open(args.json, "w") as handle:
+        with open(args.json, "w", encoding="utf-8") as handle:
             json.dump(result, handle, indent=2)
     if args.traces:
         np.savez_compressed(args.traces, timestep_ps=timestep, **traces)

@@ -251,17 +251,23 @@ class AlphaRattleIntegrator(_EnergyModeProgram):
         builders[order, energy_mode]()
 
     def _build_program(self) -> None:
-        """Order 2, fixed α: a loop of position solves, each but the last followed by a midpoint force.
+        """Order 2, fixed α: RATTLE at α = 0, else a loop of solves and midpoint forces.
 
-        At α = 0 the loop makes one pass without a midpoint force, and the step is the
-        same floating-point operations as :class:`RattleIntegrator`.
+        At α = 0 the step is the RATTLE block, the same computations as
+        :class:`RattleIntegrator`; its kernels read no global variable, so on CUDA,
+        OpenCL and HIP the step needs no upload of globals to the device (each is a
+        synchronisation with the host). The α ≠ 0 block follows it in program text,
+        so that its midpoint assignment comes after every constraint step.
         """
         self._add_save_step_start(fstart="f", fmid="f")
-        self._add_midpoint_setup("1 - delta(alpha)")
+        self._add_midpoint_setup("1")
+        self.beginIfBlock("alpha = 0")
+        self._add_position_solve("0.5*f")
+        self._add_velocity_update("0.5*f")
+        self.endBlock()
+        self.beginIfBlock("alpha != 0")
         self.addComputeGlobal("solving", "1")
         self.beginWhileBlock("solving > 0.5")
-        # set before the solve, so that no global changes between it and the velocity
-        # update at α = 0 (a changed global is uploaded before the next kernel using one)
         self.addComputeGlobal("solving", "0")
         self._add_position_solve(first_forces("alpha"), "dt", fallback="x0")
         self.beginIfBlock("need_midpoint > 0.5")
@@ -270,6 +276,7 @@ class AlphaRattleIntegrator(_EnergyModeProgram):
         self.endBlock()
         self.endBlock()
         self._add_velocity_update(last_forces("alpha"), "dt", fallback="v0")
+        self.endBlock()
         self._add_end_step()
 
     def _build_order4_program(self) -> None:

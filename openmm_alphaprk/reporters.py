@@ -109,7 +109,9 @@ class AlphaControllerReporter:
     def _open(self) -> None:
         if isinstance(self._file_argument, (str, os.PathLike)):
             exists = os.path.exists(self._file_argument) and os.path.getsize(self._file_argument) > 0
-            self._out = open(self._file_argument, "a" if self._append else "w", newline="")  # noqa: SIM115
+            self._out = open(  # noqa: SIM115
+                self._file_argument, "a" if self._append else "w", newline="", encoding="utf-8"
+            )
             self._owns_file = True
             write_header = not (self._append and exists)
         else:

@@ -66,7 +66,7 @@ def check_run_directory(path: Path, parameters: dict[str, Any]) -> dict[str, Any
             f"output directory {path} is not empty and holds no {PARAMETERS_FILE}: it is not a run "
             "directory. Choose a new or empty directory."
         )
-    stored = json.loads(stored_file.read_text())
+    stored = json.loads(stored_file.read_text(encoding="utf-8"))
     keys = list(parameters) + [key for key in stored if key not in parameters]
     differences = [
         f"{key}: stored {stored.get(key)!r}, requested {parameters.get(key)!r}"
@@ -91,7 +91,7 @@ def _same(a: Any, b: Any) -> bool:
 
 
 def write_parameters(path: Path, parameters: dict[str, Any]) -> None:
-    (path / PARAMETERS_FILE).write_text(json.dumps(parameters, indent=2) + "\n")
+    (path / PARAMETERS_FILE).write_text(json.dumps(parameters, indent=2) + "\n", encoding="utf-8")
 
 
 def read_energies(path: str | os.PathLike) -> np.ndarray:
@@ -107,7 +107,7 @@ def truncate_csv(path: Path, last_step: int) -> None:
     if not path.is_file():
         return
     kept = []
-    for line in path.read_text().splitlines(keepends=True):
+    for line in path.read_text(encoding="utf-8").splitlines(keepends=True):
         if line.startswith(("#", "step")):
             kept.append(line)
             continue
@@ -120,7 +120,7 @@ def truncate_csv(path: Path, last_step: int) -> None:
         if step > last_step:
             break
         kept.append(line)
-    path.write_text("".join(kept))
+    path.write_text("".join(kept), encoding="utf-8")
 
 
 def truncate_dcd(path: Path, n_frames: int) -> int:

@@ -181,7 +181,7 @@ def load_config(path: str | os.PathLike) -> SweepConfig:
     if not path.is_file():
         raise SweepConfigError(f"sweep configuration {path} does not exist.")
     try:
-        data = tomllib.loads(path.read_text())
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
     except tomllib.TOMLDecodeError as error:
         raise SweepConfigError(f"{path} is not valid TOML: {error}") from error
     return parse_config(data, base=path.parent, source=str(path))
@@ -400,12 +400,12 @@ def cell_status(cell: Cell, directory: Path) -> dict[str, Any] | None:
     """Return the row of a finished or failed cell from its directory, None if it still has to run."""
     summary_file = directory / "summary.json"
     if summary_file.is_file():
-        summary = json.loads(summary_file.read_text())
+        summary = json.loads(summary_file.read_text(encoding="utf-8"))
         if summary.get("steps", 0) >= cell.steps:
             return _cell_row(cell, directory) | {"status": "ok"} | _flatten(summary)
     error_file = directory / ERROR_FILE
     if error_file.is_file():
-        error = json.loads(error_file.read_text()).get("error", "unknown error")
+        error = json.loads(error_file.read_text(encoding="utf-8")).get("error", "unknown error")
         return _cell_row(cell, directory) | {"status": "failed", "error": error}
     return None
 
@@ -416,7 +416,7 @@ def write_table(path: Path, rows: list[dict[str, Any]]) -> None:
     for row in rows:
         columns.extend(key for key in row if key not in columns)
     temporary = path.with_suffix(".csv.tmp")
-    with open(temporary, "w", newline="") as handle:
+    with open(temporary, "w", newline="", encoding="utf-8") as handle:
         writer = csv.DictWriter(handle, fieldnames=columns, restval="")
         writer.writeheader()
         writer.writerows(rows)
@@ -425,7 +425,7 @@ def write_table(path: Path, rows: list[dict[str, Any]]) -> None:
 
 def read_table(path: str | os.PathLike) -> list[dict[str, str]]:
     """Rows of a sweep table (all values as strings)."""
-    with open(path, newline="") as handle:
+    with open(path, newline="", encoding="utf-8") as handle:
         return list(csv.DictReader(handle))
 
 

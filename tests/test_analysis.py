@@ -135,7 +135,7 @@ def test_analyze_run_writes_json_and_figures(tmp_path_factory):
     run = tmp_path_factory.mktemp("run") / "rattle"
     run_nve(prepared, "rattle", run, steps=40, energy_interval=2, trajectory_interval=4, progress=False)
     result = analyze_run(run)
-    stored = json.loads((run / "analysis.json").read_text())
+    stored = json.loads((run / "analysis.json").read_text(encoding="utf-8"))
     assert stored["energy"] == result["energy"] and stored["constraints"]["frames"] == 10
     assert result["constraints"]["overall_max_relative_deviation"] < 1e-5
     assert 2.6 < result["rdf"]["first_peak_r_angstrom"] < 3.0  # water's first O–O shell

@@ -11,7 +11,7 @@ def test_benchmark_command_prints_and_writes_the_table(tmp_path, capsys):
     assert main([*args.split(), "--json", str(out)]) == 0
     printed = capsys.readouterr().out
     assert "AlphaRattle a=1/6" in printed and "time ratio" in printed
-    rows = {row["name"]: row for row in json.loads(out.read_text())["rows"]}
+    rows = {row["name"]: row for row in json.loads(out.read_text(encoding="utf-8"))["rows"]}
     assert rows["VerletIntegrator"]["time_ratio"] == 1.0
     assert rows["RattleIntegrator"]["force_evaluations_per_step"] == 1.0
     assert rows["AlphaRattle a=0"]["force_evaluations_per_step"] == 1.0

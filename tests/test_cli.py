@@ -19,7 +19,13 @@ SCRIPT = Path(sys.executable).with_name("alphaprk")
 def alphaprk(*args, cwd, env_cache, check=True):
     env = {**os.environ, "ALPHAPRK_CACHE_DIR": str(env_cache)}
     result = subprocess.run(
-        [str(SCRIPT), *map(str, args)], cwd=cwd, env=env, capture_output=True, text=True, timeout=300
+        [str(SCRIPT), *map(str, args)],
+        cwd=cwd,
+        env=env,
+        capture_output=True,
+        text=True,
+        encoding="utf-8",
+        timeout=300,
     )
     if check and result.returncode != 0:
         raise AssertionError(f"alphaprk {args} failed ({result.returncode}):\n{result.stderr}")
@@ -30,12 +36,12 @@ def alphaprk(*args, cwd, env_cache, check=True):
 def quick_definition(tmp_path_factory):
     """tip3p-2nm as a definition file with a short equilibration (the CLI takes .toml paths)."""
     folder = tmp_path_factory.mktemp("definitions")
-    source = (DEFINITIONS_DIR / "tip3p-2nm.toml").read_text()
+    source = (DEFINITIONS_DIR / "tip3p-2nm.toml").read_text(encoding="utf-8")
     source = source.replace("langevin_steps = 1000", "langevin_steps = 10").replace(
         "minimize_max_iterations = 500", "minimize_max_iterations = 50"
     )
     path = folder / "quick-box.toml"
-    path.write_text(source)
+    path.write_text(source, encoding="utf-8")
     return path
 
 
@@ -71,7 +77,11 @@ def test_help_explains_every_option_with_units(tmp_path, cache):
     analyze_help = alphaprk("analyze", "--help", cwd=tmp_path, env_cache=cache).stdout
     assert "--rdf-max" in analyze_help and "nm" in analyze_help
     module = subprocess.run(
-        [sys.executable, "-m", "openmm_alphaprk", "--help"], capture_output=True, text=True, check=True
+        [sys.executable, "-m", "openmm_alphaprk", "--help"],
+        capture_output=True,
+        text=True,
+        encoding="utf-8",
+        check=True,
     )
     assert module.stdout == top
 
@@ -108,7 +118,7 @@ def test_run_then_analyze(tmp_path, cache, quick_definition):
     )
     summary = json.loads(result.stdout)
     assert summary["steps"] == 20 and summary["integrator"] == "alpha=1/6"
-    assert json.loads((tmp_path / "out" / "summary.json").read_text()) == summary
+    assert json.loads((tmp_path / "out" / "summary.json").read_text(encoding="utf-8")) == summary
     analysis = alphaprk("analyze", "out", "--rdf-max", "0.8nm", cwd=tmp_path, env_cache=cache)
     assert "O-O RDF: first peak" in analysis.stdout and "drift" in analysis.stdout
     assert (tmp_path / "out" / "rdf_OO.png").is_file() and (tmp_path / "out" / "analysis.json").is_file()
@@ -184,7 +194,7 @@ def test_output_directory_with_a_different_run_is_refused(tmp_path, cache, quick
     assert result.returncode == 2
     assert "holds a different run (integrator: stored 'rattle', requested 'verlet')" in result.stderr
     (tmp_path / "papers").mkdir()
-    (tmp_path / "papers" / "draft.tex").write_text("keep me")
+    (tmp_path / "papers" / "draft.tex").write_text("keep me", encoding="utf-8")
     result = alphaprk(
         "run",
         quick_definition,
@@ -198,14 +208,14 @@ def test_output_directory_with_a_different_run_is_refused(tmp_path, cache, quick
         check=False,
     )
     assert result.returncode == 2 and "not a run directory" in result.stderr
-    assert (tmp_path / "papers" / "draft.tex").read_text() == "keep me"
+    assert (tmp_path / "papers" / "draft.tex").read_text(encoding="utf-8") == "keep me"
 
 
 def test_killed_run_resumes_to_the_uninterrupted_result(tmp_path, cache):
     """SIGKILL part-way (no clean-up at all), then the same command: the same files as one run."""
-    source = (DEFINITIONS_DIR / "water-cluster.toml").read_text()
+    source = (DEFINITIONS_DIR / "water-cluster.toml").read_text(encoding="utf-8")
     definition = tmp_path / "quick-cluster.toml"
-    definition.write_text(source.replace("langevin_steps = 1000", "langevin_steps = 10"))
+    definition.write_text(source.replace("langevin_steps = 1000", "langevin_steps = 10"), encoding="utf-8")
     args = [
         str(SCRIPT),
         "run",
@@ -233,17 +243,17 @@ def test_killed_run_resumes_to_the_uninterrupted_result(tmp_path, cache):
     process.kill()
     process.wait()
     assert not (tmp_path / "parts" / "summary.json").exists(), "the run finished before it could be killed"
-    energies = (tmp_path / "parts" / "energies.csv").read_text()
+    energies = (tmp_path / "parts" / "energies.csv").read_text(encoding="utf-8")
     assert energies.startswith("#") and len(energies.splitlines()) > 1  # readable after a kill
     alphaprk(*args[1:], "-o", "parts", cwd=tmp_path, env_cache=cache)
     read = {run: (tmp_path / run / "trajectory.dcd").read_bytes() for run in ("parts", "whole")}
-    assert (tmp_path / "parts" / "energies.csv").read_text() == (
+    assert (tmp_path / "parts" / "energies.csv").read_text(encoding="utf-8") == (
         tmp_path / "whole" / "energies.csv"
-    ).read_text()
+    ).read_text(encoding="utf-8")
     # DCD: the same frame count and frames; the header's title holds the creation time
     assert read["parts"][8:12] == read["whole"][8:12] and read["parts"][276:] == read["whole"][276:]
     assert len(read["whole"]) > 276 + 40 * 3 * 222 * 4
-    whole = json.loads((tmp_path / "whole" / "summary.json").read_text())
-    parts = json.loads((tmp_path / "parts" / "summary.json").read_text())
+    whole = json.loads((tmp_path / "whole" / "summary.json").read_text(encoding="utf-8"))
+    parts = json.loads((tmp_path / "parts" / "summary.json").read_text(encoding="utf-8"))
     for key in ("e_ref", "drift_per_dof", "rms_residual", "max_relative_constraint_error", "momentum_change"):
         assert parts[key] == whole[key], key

@@ -83,14 +83,23 @@ def test_every_integrator_takes_the_reference_step(water_box, spec, name):
 
 
 @pytest.mark.parametrize("spec", configured())
-def test_alpha_zero_is_rattle_bitwise_on_the_platform(water_box, spec):
-    a, b = AlphaRattleIntegrator(H, 0.0), RattleIntegrator(H)
-    ca = _context(water_box.system, a, spec, water_box.positions, water_box.velocities)
-    cb = _context(water_box.system, b, spec, water_box.positions, water_box.velocities)
-    a.step(10)
-    b.step(10)
-    assert np.array_equal(positions_of(ca), positions_of(cb))
-    assert np.array_equal(velocities_of(ca), velocities_of(cb))
+def test_alpha_zero_is_rattle_on_the_platform(water_box, spec):
+    """Bitwise where the platform repeats itself; else as close as RATTLE is to itself.
+
+    Measured: bitwise on OpenCL (pocl, double and mixed) and CUDA double. CUDA mixed does
+    not repeat a run bitwise (two RATTLE runs differ by ~1e-8 nm after 10 steps).
+    """
+    runs = []
+    for integrator in (RattleIntegrator(H), RattleIntegrator(H), AlphaRattleIntegrator(H, 0.0)):
+        context = _context(water_box.system, integrator, spec, water_box.positions, water_box.velocities)
+        integrator.step(10)
+        runs.append((positions_of(context), velocities_of(context)))
+    (x_rattle, v_rattle), (x_again, _), (x_alpha, v_alpha) = runs
+    repeat = np.max(np.abs(x_rattle - x_again))
+    if repeat == 0.0:
+        assert np.array_equal(x_alpha, x_rattle) and np.array_equal(v_alpha, v_rattle)
+    else:
+        assert np.max(np.abs(x_alpha - x_rattle)) <= 10 * repeat
 
 
 def _residuals(context, integrator, steps, e_ref):

@@ -91,12 +91,12 @@ def test_interrupted_run_resumes_to_the_uninterrupted_result(request, tmp_path, 
         np.testing.assert_array_equal(v_parts.trajectory.timeseries(), v_whole.trajectory.timeseries())
     for name in (rundir.ENERGIES_FILE, rundir.CONTROLLER_FILE):
         if (whole / name).exists():
-            assert (parts / name).read_text() == (whole / name).read_text()
+            assert (parts / name).read_text(encoding="utf-8") == (whole / name).read_text(encoding="utf-8")
     u_whole = mda.Universe(str(whole / "topology.pdb"), str(whole / "trajectory.dcd"))
     u_parts = mda.Universe(str(parts / "topology.pdb"), str(parts / "trajectory.dcd"))
     assert len(u_parts.trajectory) == len(u_whole.trajectory) == 7
     np.testing.assert_array_equal(u_parts.trajectory.timeseries(), u_whole.trajectory.timeseries())
-    final = json.loads((whole / rundir.SUMMARY_FILE).read_text())
+    final = json.loads((whole / rundir.SUMMARY_FILE).read_text(encoding="utf-8"))
     assert summary.e_ref == final["e_ref"] and summary.rms_residual == final["rms_residual"]
     assert summary.force_evaluations_per_step == final["force_evaluations_per_step"]
 
@@ -113,14 +113,14 @@ def test_finished_run_is_reported_and_can_be_extended(box, tmp_path):
 
 def test_directory_with_a_different_run_is_refused(box, tmp_path):
     run_nve(box, "rattle", tmp_path, steps=4, **REFERENCE_RUN)
-    before = (tmp_path / rundir.ENERGIES_FILE).read_text()
+    before = (tmp_path / rundir.ENERGIES_FILE).read_text(encoding="utf-8")
     with pytest.raises(RunDirectoryError, match=r"different run \(integrator: stored 'rattle', requested"):
         run_nve(box, "energy", tmp_path, steps=4, **REFERENCE_RUN)
     with pytest.raises(RunDirectoryError, match="timestep_ps"):
         run_nve(box, "rattle", tmp_path, steps=4, **{**REFERENCE_RUN}, timestep=0.001)
-    assert (tmp_path / rundir.ENERGIES_FILE).read_text() == before
+    assert (tmp_path / rundir.ENERGIES_FILE).read_text(encoding="utf-8") == before
     (tmp_path / "other").mkdir()
-    (tmp_path / "other" / "notes.txt").write_text("mine")
+    (tmp_path / "other" / "notes.txt").write_text("mine", encoding="utf-8")
     with pytest.raises(RunDirectoryError, match="not a run directory"):
         run_nve(box, "rattle", tmp_path / "other", steps=4, **REFERENCE_RUN)
 
@@ -164,7 +164,7 @@ def test_compare_table_figure_and_json(box, tmp_path):
     assert [s.integrator for s in result.summaries] == ["rattle", "alpha=1/6", "verlet"]
     assert "drift/DOF" in result.table and "kJ/mol/ns" in result.table and "leapfrog" in result.table
     assert result.figure.is_file() and result.figure.stat().st_size > 1000
-    data = json.loads((tmp_path / "comparison.json").read_text())
+    data = json.loads((tmp_path / "comparison.json").read_text(encoding="utf-8"))
     assert len(data["summaries"]) == 3 and (tmp_path / "alpha=1_6" / "summary.json").is_file()
     with pytest.raises(ValueError, match="repeated"):
         compare(box, ["rattle", "RATTLE"], tmp_path / "x", steps=2, progress=False)
@@ -190,7 +190,9 @@ def test_velocities_file_and_seeded_start(cluster, tmp_path):
     other = run_nve(cluster, "rattle", tmp_path / "c", velocity_seed=4, **run)
     plain = run_nve(cluster, "rattle", tmp_path / "d", **run)
     assert first.e_ref == again.e_ref and first.e_ref != other.e_ref and first.e_ref != plain.e_ref
-    start = mm.XmlSerializer.deserialize((tmp_path / "a" / rundir.START_STATE_FILE).read_text())
+    start = mm.XmlSerializer.deserialize(
+        (tmp_path / "a" / rundir.START_STATE_FILE).read_text(encoding="utf-8")
+    )
     v0 = start.getVelocities(asNumpy=True).value_in_unit(unit.nanometers / unit.picoseconds)
     x0 = start.getPositions(asNumpy=True).value_in_unit(unit.nanometers)
     assert constraint_errors(cluster.system, x0, v0)[1] < 1e-6  # constrained components removed

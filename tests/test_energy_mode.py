@@ -190,7 +190,7 @@ def test_controller_reporter_writes_every_step_as_it_goes(water_box, tmp_path):
     reporter = AlphaControllerReporter(str(path))
     simulation.reporters.append(reporter)
     simulation.step(4)
-    assert path.read_text().splitlines()[0] == ",".join(COLUMNS)
+    assert path.read_text(encoding="utf-8").splitlines()[0] == ",".join(COLUMNS)
     rows = read_controller_csv(path)
     assert rows.shape == (4, len(COLUMNS))
     assert rows[-1, 2] == integrator.alpha

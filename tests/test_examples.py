@@ -24,6 +24,7 @@ def _run(script: str, *args, cwd, env) -> str:
         env=env,
         capture_output=True,
         text=True,
+        encoding="utf-8",
         timeout=120,
     )
     assert result.returncode == 0, result.stderr
@@ -33,7 +34,7 @@ def _run(script: str, *args, cwd, env) -> str:
 def test_dropin_simulation_script(tmp_path, env):
     out = _run("simulation_dropin.py", "--steps", "20", "--output", "run", cwd=tmp_path, env=env)
     assert "force evaluations per step" in out
-    rows = (tmp_path / "run" / "energies.csv").read_text().splitlines()
+    rows = (tmp_path / "run" / "energies.csv").read_text(encoding="utf-8").splitlines()
     assert rows[0].startswith("#") and len(rows) == 3  # header + steps 10, 20
 
 

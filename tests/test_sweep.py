@@ -139,7 +139,7 @@ def test_bad_configuration_is_refused_with_the_entry_named(change, message):
 def test_missing_or_broken_file(tmp_path):
     with pytest.raises(SweepConfigError, match="does not exist"):
         load_config(tmp_path / "none.toml")
-    (tmp_path / "bad.toml").write_text("output = \n")
+    (tmp_path / "bad.toml").write_text("output = \n", encoding="utf-8")
     with pytest.raises(SweepConfigError, match="not valid TOML"):
         load_config(tmp_path / "bad.toml")
 
@@ -155,7 +155,7 @@ def test_tiny_sweep_records_the_failing_cell_and_resumes(tmp_path, cache):
     rows = {row["cell"]: row for row in read_table(tmp_path / "out" / TABLE_FILE)}
     assert set(rows) == {c.name for c in config.cells}  # the failed cell is in the table, not dropped
     assert rows[FAILING]["status"] == "failed" and "NaN" in rows[FAILING]["error"]
-    assert "NaN" in json.loads((tmp_path / "out" / FAILING / ERROR_FILE).read_text())["error"]
+    assert "NaN" in json.loads((tmp_path / "out" / FAILING / ERROR_FILE).read_text(encoding="utf-8"))["error"]
     ok = [row for name, row in rows.items() if name != FAILING]
     assert all(row["status"] == "ok" and int(float(row["steps"])) == 20 for row in ok)
     assert all(float(row["rms_residual"]) > 0 and float(row["force_evaluations_per_step"]) >= 1 for row in ok)
@@ -201,19 +201,28 @@ def test_cli_runs_a_sweep_through_the_installed_script(tmp_path, cache):
     config.write_text(
         'output = "cli-out"\n[run]\nduration_ps = 0.02\nplatform = "Reference"\nenergy_interval_fs = 10\n'
         "trajectory_interval_fs = 10\ncheckpoint_interval_fs = 10\n[cluster]\nn_workers = 1\n"
-        '[[grid]]\nsystems = ["water-cluster"]\nintegrators = ["rattle", "energy"]\ntimesteps_fs = [2]\n'
+        '[[grid]]\nsystems = ["water-cluster"]\nintegrators = ["rattle", "energy"]\ntimesteps_fs = [2]\n',
+        encoding="utf-8",
     )
     script = Path(sys.executable).parent / "alphaprk"
     env = os.environ | {"ALPHAPRK_CACHE_DIR": str(cache)}
-    listed = subprocess.run([script, "sweep", config, "--list"], capture_output=True, text=True, env=env)
+    listed = subprocess.run(
+        [script, "sweep", config, "--list"], capture_output=True, text=True, encoding="utf-8", env=env
+    )
     assert listed.returncode == 0 and listed.stdout.count("to run") == 2
-    done = subprocess.run([script, "sweep", config, "--quiet"], capture_output=True, text=True, env=env)
+    done = subprocess.run(
+        [script, "sweep", config, "--quiet"], capture_output=True, text=True, encoding="utf-8", env=env
+    )
     assert done.returncode == 0, done.stderr
     assert "2 run now, 0 finished before, 0 failed" in done.stdout
     rows = read_table(tmp_path / "cli-out" / TABLE_FILE)
     energy = next(row for row in rows if row["integrator"] == "energy")
     assert energy["status"] == "ok" and float(energy["controller.force_evaluations_per_step"]) > 2
     bad = subprocess.run(
-        [script, "sweep", tmp_path / "missing.toml"], capture_output=True, text=True, env=env
+        [script, "sweep", tmp_path / "missing.toml"],
+        capture_output=True,
+        text=True,
+        encoding="utf-8",
+        env=env,
     )
     assert bad.returncode == 2 and "does not exist" in bad.stderr

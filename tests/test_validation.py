@@ -366,7 +366,7 @@ def test_openmm_energy_modes_on_the_774_atom_box(tmp_path):
 # ------------------------------------------------------------------- the page itself
 def test_page_tables_are_the_ones_rendered_from_the_json():
     script = _script()
-    data = json.loads((DOCS / "validation.json").read_text())
+    data = json.loads((DOCS / "validation.json").read_text(encoding="utf-8"))
     assert not data["quick"]
     rendered = script.render_tables(data)
     on_page = script.page_tables(DOCS / "validation.md")
@@ -375,21 +375,21 @@ def test_page_tables_are_the_ones_rendered_from_the_json():
         assert on_page[name] == table, f"table {name!r} of docs/validation.md is not the JSON's"
     for figure in ("convergence", "symplecticity", "alpha_star", "long_runs"):
         assert (DOCS / "figures" / f"validation_{figure}.png").is_file()
-        assert f"figures/validation_{figure}.png" in (DOCS / "validation.md").read_text()
+        assert f"figures/validation_{figure}.png" in (DOCS / "validation.md").read_text(encoding="utf-8")
 
 
 @pytest.mark.slow
 def test_quick_run_of_the_script_writes_everything(tmp_path):
     script = _script()
     page = tmp_path / "page.md"
-    page.write_text("<!-- table: orders -->\n<!-- end table -->\n")
+    page.write_text("<!-- table: orders -->\n<!-- end table -->\n", encoding="utf-8")
     assert (
         script.main(
             ["--quick", "--json", str(tmp_path / "v.json"), "--figures", str(tmp_path), "--page", str(page)]
         )
         == 0
     )
-    data = json.loads((tmp_path / "v.json").read_text())
+    data = json.loads((tmp_path / "v.json").read_text(encoding="utf-8"))
     assert data["quick"]
-    assert "| RATTLE (α = 0) |" in page.read_text()
+    assert "| RATTLE (α = 0) |" in page.read_text(encoding="utf-8")
     assert len(list(tmp_path.glob("validation_*.png"))) == 4

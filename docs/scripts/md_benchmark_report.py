@@ -112,7 +112,7 @@ def analyse_run(directory: Path) -> dict:
     """O–O RDF, diffusion of water O and the water-H VACF spectrum of one run (cached in the run dir)."""
     cache = directory / ANALYSIS_FILE
     if cache.is_file():
-        stored = json.loads(cache.read_text())
+        stored = json.loads(cache.read_text(encoding="utf-8"))
         if stored.get("version") == ANALYSIS_VERSION:
             return stored
     import MDAnalysis as mda
@@ -151,7 +151,7 @@ def analyse_run(directory: Path) -> dict:
             name: band_summary(vacf.results.frequencies, vacf.results.spectrum, low, high)
             for name, (low, high) in BANDS.items()
         }
-    cache.write_text(json.dumps(result) + "\n")
+    cache.write_text(json.dumps(result) + "\n", encoding="utf-8")
     return result
 
 
@@ -581,7 +581,9 @@ def main(argv: list[str] | None = None) -> int:
         run_sweep(config, n_workers=args.workers)
     rows = load_rows(config)
     report = {"energy": {}, "dynamics": {}, "scan": {}, "timing": {}, "reference": label(*REFERENCE)}
-    previous = json.loads(JSON_OUT.read_text()).get("timing", {}) if JSON_OUT.is_file() else {}
+    previous = (
+        json.loads(JSON_OUT.read_text(encoding="utf-8")).get("timing", {}) if JSON_OUT.is_file() else {}
+    )
     for system in SYSTEMS:
         if args.no_timing or get(rows, system, "rattle", 2.0) is None:
             report["timing"][system] = previous.get(system, {})
@@ -599,9 +601,9 @@ def main(argv: list[str] | None = None) -> int:
         "platform": "CPU",
         "machine": "2-core development machine",
     }
-    JSON_OUT.write_text(json.dumps(report, indent=1) + "\n")
+    JSON_OUT.write_text(json.dumps(report, indent=1) + "\n", encoding="utf-8")
 
-    page = PAGE.read_text()
+    page = PAGE.read_text(encoding="utf-8")
     for system in SYSTEMS:
         if report["energy"][system]:
             page = replace_generated(
@@ -615,7 +617,7 @@ def main(argv: list[str] | None = None) -> int:
             )
         if report["scan"][system]:
             page = replace_generated(page, f"scan {system}", scan_markdown(system, report["scan"][system]))
-    PAGE.write_text(page)
+    PAGE.write_text(page, encoding="utf-8")
     print(
         f"wrote {JSON_OUT.relative_to(ROOT)}, {len(report['figures'])} figures, "
         f"tables in {PAGE.relative_to(ROOT)}"

@@ -914,7 +914,7 @@ TABLE_PATTERN = re.compile(r"<!-- table: (\w+) -->\n((?:(?!<!-- ).)*?)<!-- end t
 
 def update_page(page: Path, tables: dict[str, str]) -> list[str]:
     """Replace the generated tables in ``page``; return the names of tables the page lacks."""
-    text = page.read_text()
+    text = page.read_text(encoding="utf-8")
     found = set()
 
     def replace(match: re.Match) -> str:
@@ -924,13 +924,15 @@ def update_page(page: Path, tables: dict[str, str]) -> list[str]:
         found.add(name)
         return f"<!-- table: {name} -->\n{tables[name]}\n<!-- end table -->"
 
-    page.write_text(TABLE_PATTERN.sub(replace, text))
+    page.write_text(TABLE_PATTERN.sub(replace, text), encoding="utf-8")
     return sorted(set(tables) - found)
 
 
 def page_tables(page: Path) -> dict[str, str]:
     """Return the generated tables as they stand in ``page``."""
-    return {m.group(1): m.group(2).rstrip("\n") for m in TABLE_PATTERN.finditer(page.read_text())}
+    return {
+        m.group(1): m.group(2).rstrip("\n") for m in TABLE_PATTERN.finditer(page.read_text(encoding="utf-8"))
+    }
 
 
 # ----------------------------------------------------------------------- figures
@@ -1146,11 +1148,11 @@ def main(argv: list[str] | None = None) -> int:
         figures = args.figures or DOCS / "figures"
         page = args.page or DOCS / "validation.md"
     if args.from_json:
-        data = json.loads(json_path.read_text())
+        data = json.loads(json_path.read_text(encoding="utf-8"))
     else:
         data = compute(args.quick, args.workdir or scratch / "runs")
         json_path.parent.mkdir(parents=True, exist_ok=True)
-        json_path.write_text(dump_json(data))
+        json_path.write_text(dump_json(data), encoding="utf-8")
     figures.mkdir(parents=True, exist_ok=True)
     figure_convergence(data, figures / "validation_convergence.png")
     figure_symplecticity(data, figures / "validation_symplecticity.png")

@@ -71,8 +71,8 @@ def analyze_run(
     for name in (rundir.ENERGIES_FILE, rundir.SYSTEM_FILE, rundir.TOPOLOGY_FILE):
         if not (run / name).is_file():
             raise FileNotFoundError(f"{run / name} is missing; the run did not start properly.")
-    parameters = json.loads((run / rundir.PARAMETERS_FILE).read_text())
-    system = mm.XmlSerializer.deserialize((run / rundir.SYSTEM_FILE).read_text())
+    parameters = json.loads((run / rundir.PARAMETERS_FILE).read_text(encoding="utf-8"))
+    system = mm.XmlSerializer.deserialize((run / rundir.SYSTEM_FILE).read_text(encoding="utf-8"))
     energies = rundir.read_energies(run / rundir.ENERGIES_FILE)
     result: dict = {"run": str(run), "parameters": parameters, "notes": []}
     drift = energy_drift(energies[:, 1], energies[:, 4], degrees_of_freedom(system))
@@ -165,5 +165,5 @@ def analyze_run(
         else:
             result["notes"].append("MSD skipped: fewer than three frames or no selected atoms")
     result["figures"] = {key: str(value) for key, value in figures.items()}
-    (run / ANALYSIS_FILE).write_text(json.dumps(result, indent=2) + "\n")
+    (run / ANALYSIS_FILE).write_text(json.dumps(result, indent=2) + "\n", encoding="utf-8")
     return result

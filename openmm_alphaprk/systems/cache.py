@@ -166,7 +166,7 @@ def _write(prepared: PreparedSystem, path: Path, build_seconds: float) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", dir=path.parent))
     try:
-        (tmp / "system.xml").write_text(mm.XmlSerializer.serialize(prepared.system))
+        (tmp / "system.xml").write_text(mm.XmlSerializer.serialize(prepared.system), encoding="utf-8")
         with open(tmp / "topology.pdb", "w") as handle:
             app.PDBFile.writeFile(prepared.topology, prepared.state.getPositions(), handle, keepIds=True)
         meta = {
@@ -178,9 +178,9 @@ def _write(prepared: PreparedSystem, path: Path, build_seconds: float) -> None:
             "n_atoms": prepared.n_atoms,
             "equilibration_seconds": round(build_seconds, 2),
         }
-        (tmp / "definition.json").write_text(json.dumps(meta, indent=2))
+        (tmp / "definition.json").write_text(json.dumps(meta, indent=2), encoding="utf-8")
         # state.xml last: its presence marks a complete entry
-        (tmp / "state.xml").write_text(mm.XmlSerializer.serialize(prepared.state))
+        (tmp / "state.xml").write_text(mm.XmlSerializer.serialize(prepared.state), encoding="utf-8")
         try:
             os.replace(tmp, path)
         except OSError:  # another process cached the same key first; keep theirs
@@ -191,14 +191,14 @@ def _write(prepared: PreparedSystem, path: Path, build_seconds: float) -> None:
 
 
 def _read(path: Path, definition: SystemDefinition, key: str) -> PreparedSystem:
-    meta = json.loads((path / "definition.json").read_text())
+    meta = json.loads((path / "definition.json").read_text(encoding="utf-8"))
     if meta.get("key") != key:
         raise RuntimeError(
             f"cache entry {path} holds key {meta.get('key')!r}, expected {key!r}; delete the folder "
             "and run again."
         )
-    system = mm.XmlSerializer.deserialize((path / "system.xml").read_text())
-    state = mm.XmlSerializer.deserialize((path / "state.xml").read_text())
+    system = mm.XmlSerializer.deserialize((path / "system.xml").read_text(encoding="utf-8"))
+    state = mm.XmlSerializer.deserialize((path / "state.xml").read_text(encoding="utf-8"))
     topology = app.PDBFile(str(path / "topology.pdb")).topology
     if topology.getNumAtoms() != system.getNumParticles():
         raise RuntimeError(

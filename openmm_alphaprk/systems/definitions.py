@@ -125,7 +125,7 @@ def load_definition(name: str) -> SystemDefinition:
             "(`alphaprk systems` lists them), or give the path of a .toml definition file."
         )
     try:
-        data = tomllib.loads(path.read_text())
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
     except tomllib.TOMLDecodeError as error:
         raise DefinitionError(f"{path} is not valid TOML: {error}") from None
     return parse_definition(data, path.stem)
