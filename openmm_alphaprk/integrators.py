@@ -114,8 +114,9 @@ class AlphaRattleIntegrator(_EnergyModeProgram):
     constraint_tolerance
         Relative constraint tolerance passed to ``setConstraintTolerance``.
     midpoint_tolerance
-        The midpoint iteration stops when the RMS change of x1 per degree of freedom
-        falls below this (nm). Default 1e-10 nm for fixed α (symplectic to that
+        The midpoint iteration stops when the change that the last midpoint force
+        makes to the next solve of x1, h²α ΔF/m, falls below this (nm, RMS per
+        degree of freedom). Default 1e-10 nm for fixed α (symplectic to that
         level); in the energy mode 1e-7 nm (order 2) or 1e-6 nm (order 4, where α*
         is ~100× smaller), since there it only limits how well angular momentum is
         kept: ΔL ≈ 2hα δx_m × F per step.

@@ -12,7 +12,6 @@ import time
 
 import numpy as np
 import openmm as mm
-import openmm.app as app
 import openmm.unit as unit
 import pytest
 from conftest import REFERENCE, positions_of, total_energy, velocities_of
@@ -23,6 +22,7 @@ from openmm_alphaprk import (
     MasslessParticleError,
     RattleIntegrator,
 )
+from openmm_alphaprk.waterbox import build_water_box
 
 H = 0.002
 INTEGRATORS = {
@@ -156,29 +156,8 @@ def test_programs_are_small_and_start_on_the_platform(water_box, spec):
 @pytest.fixture(scope="module")
 def tip4pew_box():
     """A 1.8 nm TIP4P-Ew box (M-sites are massless virtual sites), equilibrated on CPU."""
-    forcefield = app.ForceField("tip4pew.xml")
-    modeller = app.Modeller(app.Topology(), [])
-    modeller.addSolvent(forcefield, model="tip4pew", boxSize=mm.Vec3(1.8, 1.8, 1.8) * unit.nanometers)
-    system = forcefield.createSystem(
-        modeller.topology,
-        nonbondedMethod=app.PME,
-        nonbondedCutoff=0.8,
-        switchDistance=0.7,
-        ewaldErrorTolerance=1e-5,
-        rigidWater=True,
-        removeCMMotion=False,
-    )
-    integrator = mm.LangevinMiddleIntegrator(300, 5, 0.002)
-    integrator.setRandomNumberSeed(3)
-    context = mm.Context(system, integrator, mm.Platform.getPlatformByName("CPU"))
-    context.setPositions(modeller.positions)
-    mm.LocalEnergyMinimizer.minimize(context, 10.0, 200)
-    context.setVelocitiesToTemperature(300, 3)
-    integrator.step(200)
-    context.applyConstraints(1e-12)  # a consistent start: no jump of H at the first step
-    context.applyVelocityConstraints(1e-12)
-    state = context.getState(getPositions=True, getVelocities=True)
-    return system, state.getPositions(asNumpy=True), state.getVelocities(asNumpy=True)
+    box = build_water_box(1.8, model="tip4pew", cutoff=0.8, equilibration_steps=200, seed=3, platform="CPU")
+    return box.system, box.positions, box.velocities
 
 
 def _energy_trace(system, integrator, spec, positions, velocities, steps):
@@ -221,8 +200,6 @@ def test_tip4pew_with_rattle_and_triple_jump_conserves_energy_like_verlet(tip4pe
 @pytest.mark.parametrize("spec", with_precision("double"))
 def test_tip4pew_rattle_follows_verlet_step_for_step(tip4pew_box, spec):
     system, x0, v0 = tip4pew_box
-    x0 = x0.value_in_unit(unit.nanometers)
-    v0 = v0.value_in_unit(unit.nanometers / unit.picoseconds)
     rattle = RattleIntegrator(H, constraint_tolerance=1e-10)
     context = _context(system, rattle, spec, x0, v0)
     context.computeVirtualSites()
