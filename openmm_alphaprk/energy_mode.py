@@ -20,7 +20,8 @@ controller runs entirely inside the ``CustomIntegrator`` step program, in one
    it uses the last step's and moves α by at least ``alpha_probe`` so that the
    second trial measures one (at a bound, where that move would leave the interval,
    it probes inwards). Every move is limited to ``max_alpha_change`` and clipped to
-   the α bounds. A new trial starts at step 2 with x1 extrapolated linearly in α.
+   the α bounds. A new trial first solves x1 again with the new α and the last
+   midpoint force, then goes on with step 2.
 
 At order 4 (α-RATTLE-4) the first RATTLE sub-step is taken once, and a trial redoes
 the middle α-RATTLE sub-step (steps 1–2 with h scaled by γ2) and the last RATTLE
@@ -50,7 +51,7 @@ import openmm.unit as unit
 
 from . import platforms
 from ._units import to_dimensionless, to_float
-from .step_program import MIDDLE_H, OUTER_H, _StepProgram, first_forces, last_forces
+from .step_program import MIDDLE_H, _StepProgram, first_forces, last_forces
 
 #: Energy tolerance (kJ/mol) until the first step sets the automatic one.
 PROVISIONAL_ENERGY_TOLERANCE = 0.01
@@ -168,6 +169,7 @@ class _EnergyModeProgram(_StepProgram):
         self._add_reference_check()
         # F(x_m) predicted by linear extrapolation in time from the previous step's midpoint force
         self.addComputePerDof("fmid", "select(predictor_valid, 2*fstart - fmid_last, fstart)")
+        self._add_midpoint_setup("1")
         self._add_controller_start()
         self.addComputeGlobal("solving", "1")
         self.beginWhileBlock("solving > 0.5")
@@ -194,8 +196,7 @@ class _EnergyModeProgram(_StepProgram):
         # F(x0) is read before the reference check's energy: see _add_reference_check
         self._add_save_step_start(xstep="x", vstep="v", fstart="f")
         self._add_reference_check()
-        self._add_position_solve("0.5*fstart", OUTER_H)
-        self._add_velocity_update("0.5*f", OUTER_H)
+        self._add_first_outer_substep()
         self._add_controller_start()
         # the midpoint force's offset from the sub-step's start force changes little between steps
         self._add_inner_substeps_start(
@@ -233,11 +234,10 @@ class _EnergyModeProgram(_StepProgram):
         energy decides: the common platform's reordering and re-wrapping of atoms move
         coordinates but keep the energy.
 
-        The force at x0 must have been read (copied) before this block: on CUDA and
-        OpenCL an ``energy`` read that is the first evaluation of a step computes the
-        energy alone and still marks the forces valid, so a later ``f`` would be
-        wrong (measured on an H100 and NVIDIA's OpenCL: +32 kJ/mol in one step; not
-        seen with pocl).
+        The force at x0 must have been read (copied) before this block: with the
+        energy read here as a step's first evaluation and ``f`` read after it, the
+        forces were wrong on CUDA and NVIDIA's OpenCL (measured on an H100: +32
+        kJ/mol in one step; not seen with pocl or Reference).
         """
         self._add_sum("state_moved", "(x - xend)^2 + (v - vend)^2")
         self.beginIfBlock("state_moved + 1 - reference_set > 0")
@@ -257,8 +257,6 @@ class _EnergyModeProgram(_StepProgram):
 
     def _add_controller_start(self) -> None:
         """Reset the per-step controller state; the first trial uses the last step's α*."""
-        if self.order == 2:
-            self._add_midpoint_setup("1")
         self.addComputeGlobal("alpha_start", "alpha")
         self.addComputeGlobal("alpha", "min(max(alpha, alpha_min), alpha_max)")
         for name in ("trials", "slope_measured", "controller_done", "restarting"):

@@ -28,7 +28,6 @@ from .energy_mode import (
 )
 from .step_program import (
     KIND_VARIABLE,
-    OUTER_H,
     MasslessParticleError,
     _StepProgram,
     first_forces,
@@ -289,8 +288,7 @@ class AlphaRattleIntegrator(_EnergyModeProgram):
         the step started from.
         """
         self._add_save_step_start(xstep="x", vstep="v", fstart="f")
-        self._add_position_solve("0.5*fstart", OUTER_H)
-        self._add_velocity_update("0.5*f", OUTER_H)
+        self._add_first_outer_substep()
         self._add_inner_substeps_start("1 - delta(alpha)", fmid="f")
         self.beginWhileBlock("phase < 3.5")
         self._add_substep_solve(fallback="xstep")

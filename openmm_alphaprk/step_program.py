@@ -216,6 +216,11 @@ class _StepProgram(mm.CustomIntegrator):
         self.addComputeGlobal("previous_midpoint_change", "midpoint_change")
 
     # ------------------------------------------- α-RATTLE-4's inner sub-steps
+    def _add_first_outer_substep(self) -> None:
+        """Take the first RATTLE sub-step (γ1 h) from the step's start, F(x0) saved as ``fstart``."""
+        self._add_position_solve("0.5*fstart", OUTER_H)
+        self._add_velocity_update("0.5*f", OUTER_H)
+
     def _add_inner_substeps_start(self, need_midpoint: str, **copies: str) -> None:
         """Start the middle sub-step (γ2 h, α) here; the loop then takes the last one (γ1 h, 0)."""
         self.addComputeGlobal("phase", "2")
