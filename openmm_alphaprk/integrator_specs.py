@@ -34,7 +34,7 @@ import openmm as mm
 import openmm.unit as unit
 
 from .integrators import AlphaRattleIntegrator, RattleIntegrator
-from .platforms import COMMON_PLATFORMS
+from .platforms import COMMON_PLATFORMS, massless_particles
 
 INTEGRATOR_NAMES = ("rattle", "alpha=<number>", "energy", "alpha4=<number>", "energy4", "verlet")
 
@@ -153,10 +153,7 @@ def check_compatible(
     spec = parse_integrator(spec)
     if spec.supports_virtual_sites(platform):
         return
-    massless = sum(
-        system.getParticleMass(i).value_in_unit(unit.dalton) == 0 or system.isVirtualSite(i)
-        for i in range(system.getNumParticles())
-    )
+    massless = len(massless_particles(system))
     if not massless:
         return
     if spec.kind in ("rattle", "alpha") and (spec.kind == "rattle" or spec.alpha == 0.0):

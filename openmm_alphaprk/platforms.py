@@ -23,6 +23,7 @@ from __future__ import annotations
 import gc
 
 import openmm as mm
+import openmm.unit as unit
 
 #: Platforms that run OpenMM's common CustomIntegrator implementation.
 COMMON_PLATFORMS = ("CUDA", "OpenCL", "HIP")
@@ -59,6 +60,15 @@ def find_context(integrator: mm.Integrator) -> mm.Context | None:
                 if isinstance(owner, mm.Context):
                     return owner
     return None
+
+
+def massless_particles(system: mm.System) -> list[int]:
+    """Return the indices of the particles with zero mass or defined as virtual sites."""
+    return [
+        i
+        for i in range(system.getNumParticles())
+        if system.isVirtualSite(i) or system.getParticleMass(i).value_in_unit(unit.dalton) == 0
+    ]
 
 
 def runs_common_platform(context: mm.Context) -> bool:

@@ -280,11 +280,7 @@ class _StepProgram(mm.CustomIntegrator):
     def _prepare(self, context: mm.Context) -> None:
         """Check the system against the platform before the first step (subclasses add more)."""
         system = context.getSystem()
-        massless = [
-            i
-            for i in range(system.getNumParticles())
-            if system.getParticleMass(i).value_in_unit(unit.dalton) == 0
-        ]
+        massless = platforms.massless_particles(system)
         self._massless_count = len(massless)
         self._common_platform = platforms.runs_common_platform(context)
         if massless and not self._common_platform:
