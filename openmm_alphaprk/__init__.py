@@ -7,12 +7,16 @@ from .integrators import (
     RattleIntegrator,
     restore_integrator,
 )
+from .smooth_forces import NonSmoothForcesWarning, make_smooth, smoothness_problems
 
 __all__ = [
     "AlphaRattleIntegrator",
     "MasslessParticleError",
     "MidpointConvergenceError",
+    "NonSmoothForcesWarning",
     "RattleIntegrator",
+    "make_smooth",
     "restore_integrator",
+    "smoothness_problems",
 ]
 __version__ = "0.1.0"

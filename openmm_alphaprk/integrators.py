@@ -26,6 +26,7 @@ from .energy_mode import (
     _EnergyModeProgram,
     check_alpha_bounds,
 )
+from .smooth_forces import warn_if_not_smooth
 from .step_program import (
     KIND_VARIABLE,
     MasslessParticleError,
@@ -334,6 +335,7 @@ class AlphaRattleIntegrator(_EnergyModeProgram):
         self._set_degrees_of_freedom(3 * (system.getNumParticles() - self._massless_count))
         if self.energy_mode:
             self._set_automatic_energy_tolerance(system.getNumParticles(), platforms.force_precision(context))
+            warn_if_not_smooth(system)  # points at the user's step() call
 
     def _prepare_without_context(self) -> None:
         super()._prepare_without_context()

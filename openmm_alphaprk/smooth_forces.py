@@ -1,0 +1,303 @@
+"""Smooth forces, the energy mode's precondition: checked, reported and fixed.
+
+The energy mode chooses α every step so that the total energy returns to E_ref. It can
+only do so if the energy is a smooth function of the positions. With OpenMM's default
+cutoff settings it is not: the Lennard-Jones energy jumps when a pair crosses the
+cutoff, and PME's default error tolerance (5e-4) adds noise of the same size. On a
+water box those jumps made up RATTLE's whole energy error, which did not shrink with h,
+and the energy mode cannot remove them (docs/energy_mode.md, "Smooth forces are a
+precondition"; docs/smooth_forces.md).
+
+:func:`smoothness_problems` lists what is wrong with a System, :func:`make_smooth`
+fixes the nonbonded settings in place, and :func:`warn_if_not_smooth` is what the
+energy-mode integrators call at their first step.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import warnings
+
+import openmm as mm
+import openmm.unit as unit
+
+from ._units import to_dimensionless, to_float
+
+__all__ = [
+    "DEFAULT_SWITCH_WIDTH",
+    "SMOOTH_EWALD_TOLERANCE",
+    "NonSmoothForcesWarning",
+    "make_smooth",
+    "smoothness_problems",
+    "warn_if_not_smooth",
+]
+
+#: Width of the Lennard-Jones switching region make_smooth sets up (nm).
+DEFAULT_SWITCH_WIDTH = 0.1
+#: The loosest Ewald/PME/LJPME error tolerance the energy mode accepts (OpenMM's default: 5e-4).
+SMOOTH_EWALD_TOLERANCE = 1e-5
+
+_EWALD_METHODS = (mm.NonbondedForce.Ewald, mm.NonbondedForce.PME, mm.NonbondedForce.LJPME)
+_BAROSTATS = tuple(
+    getattr(mm, name)
+    for name in (
+        "MonteCarloBarostat",
+        "MonteCarloAnisotropicBarostat",
+        "MonteCarloMembraneBarostat",
+        "MonteCarloFlexibleBarostat",
+        "RPMDMonteCarloBarostat",
+    )
+    if hasattr(mm, name)
+)
+#: Applied by OpenMM only in an integrator's "update context state" step, which the
+#: step programs of this package do not have.
+_NOT_APPLIED = (
+    "this package's integrators never apply it (OpenMM applies barostats, thermostats and the "
+    "CMMotionRemover in an integrator's update-context-state step, which their step programs do not have)"
+)
+_FIX_NONBONDED = "call openmm_alphaprk.make_smooth(system) before creating the Context"
+_SMALL = 1e-12  # nm: switching distances this close count as equal (round-off of cutoff − width)
+
+
+class NonSmoothForcesWarning(UserWarning):
+    """An energy-mode integrator was given a System whose energy is not smooth (see smoothness_problems)."""
+
+
+def _label(index: int, force: mm.Force) -> str:
+    """``NonbondedForce (force 3)``, with the force's name if it is not its class name."""
+    kind, name = type(force).__name__, force.getName()
+    return f"{kind} (force {index})" if name == kind else f"{kind} {name!r} (force {index})"
+
+
+def _has_cutoff(force: mm.Force) -> bool:
+    if isinstance(force, mm.NonbondedForce):
+        return force.getNonbondedMethod() != mm.NonbondedForce.NoCutoff
+    if isinstance(force, mm.CustomNonbondedForce):
+        return force.getNonbondedMethod() != mm.CustomNonbondedForce.NoCutoff
+    return False
+
+
+def _nm(quantity: unit.Quantity | float) -> float:
+    return quantity.value_in_unit(unit.nanometers) if unit.is_quantity(quantity) else float(quantity)
+
+
+def smoothness_problems(system: mm.System) -> list[str]:
+    """List what keeps ``system`` from being run by the energy mode as intended.
+
+    Parameters
+    ----------
+    system
+        The System to check (not changed).
+
+    Returns
+    -------
+    list of str
+        One message per problem, each naming the force, the setting and the fix;
+        empty if there is none. Reported: a ``NonbondedForce`` or
+        ``CustomNonbondedForce`` with a cutoff and no switching function; an
+        Ewald/PME/LJPME error tolerance above 1e-5; a ``CMMotionRemover``, Monte
+        Carlo barostat or ``AndersenThermostat`` (which this package's step programs
+        never apply, so the System promises what the run does not do).
+
+    """
+    problems = []
+    for index, force in enumerate(system.getForces()):
+        label = _label(index, force)
+        if _has_cutoff(force) and not force.getUseSwitchingFunction():
+            cutoff = _nm(force.getCutoffDistance())
+            problems.append(
+                f"{label} cuts interactions off at {cutoff:g} nm without a switching function: the "
+                "energy jumps whenever a pair crosses the cutoff, an error that does not shrink with the "
+                "step and that no choice of α can remove (unless the energy expression of a custom force "
+                f"already goes smoothly to zero there). Fix: {_FIX_NONBONDED}, which switches it off over "
+                f"the last {DEFAULT_SWITCH_WIDTH:g} nm."
+            )
+        if isinstance(force, mm.NonbondedForce) and force.getNonbondedMethod() in _EWALD_METHODS:
+            tolerance = force.getEwaldErrorTolerance()
+            if tolerance > SMOOTH_EWALD_TOLERANCE:
+                problems.append(
+                    f"{label} has an Ewald error tolerance of {tolerance:g} (OpenMM's default is 5e-4); "
+                    "its reciprocal-space error adds noise to every energy the energy mode aims at. Fix: "
+                    f"{_FIX_NONBONDED}, or setEwaldErrorTolerance({SMOOTH_EWALD_TOLERANCE:g})."
+                )
+        problems.extend(_state_changer_problem(label, force))
+    return problems
+
+
+def _state_changer_problem(label: str, force: mm.Force) -> list[str]:
+    """Return the message for a CMMotionRemover, barostat or Andersen thermostat (else nothing)."""
+    if isinstance(force, mm.CMMotionRemover):
+        return [
+            f"{label}: {_NOT_APPLIED}, so it removes nothing (centre-of-mass momentum is conserved, as "
+            "in any NVE run) while OpenMM's temperature (StateDataReporter) counts 3 degrees of freedom "
+            "fewer for it. Where it is applied it changes velocities between steps, which the energy "
+            "mode would read as a state change and re-take its reference energy. Fix: "
+            "createSystem(..., removeCMMotion=False), or remove the force."
+        ]
+    if isinstance(force, _BAROSTATS):
+        return [
+            f"{label}: {_NOT_APPLIED}, so the box volume stays fixed and the run is NVE, not the "
+            "constant-pressure run the System asks for. The energy-preserving mode is an NVE method: "
+            "remove the barostat (equilibrate the density with another integrator first)."
+        ]
+    if isinstance(force, mm.AndersenThermostat):
+        return [
+            f"{label}: {_NOT_APPLIED}, so no temperature is imposed and the run is NVE. The "
+            "energy-preserving mode is an NVE method and needs no thermostat: remove it (equilibrate "
+            "with a Langevin integrator first)."
+        ]
+    return []
+
+
+def make_smooth(
+    system: mm.System,
+    switch_width: unit.Quantity | float | None = DEFAULT_SWITCH_WIDTH * unit.nanometers,
+    ewald_error_tolerance: float | None = SMOOTH_EWALD_TOLERANCE,
+) -> list[str]:
+    """Make the nonbonded forces of ``system`` smooth at the cutoff, in place.
+
+    For every ``NonbondedForce`` and ``CustomNonbondedForce`` with a cutoff the
+    Lennard-Jones (custom: the whole) interaction is switched off between
+    cutoff − ``switch_width`` and the cutoff, unless it already is switched from that
+    distance or closer in. A ``NonbondedForce`` with Ewald, PME or LJPME gets the
+    error tolerance ``ewald_error_tolerance`` if its own is looser. Nothing else is
+    changed; forces without a cutoff are left alone.
+
+    Parameters
+    ----------
+    system
+        The System to change (before creating a Context from it: an existing Context
+        does not see the change).
+    switch_width
+        Width of the switching region (Quantity or nm; default 0.1 nm); None leaves
+        switching functions as they are.
+    ewald_error_tolerance
+        The loosest Ewald error tolerance to keep (default 1e-5); None leaves it.
+
+    Returns
+    -------
+    list of str
+        One line per change made (force index and name, old → new value); empty if
+        the System already was smooth.
+
+    Raises
+    ------
+    ValueError
+        If cutoff − ``switch_width`` ≤ 0 for some force (nothing is changed then).
+
+    """
+    width = None if switch_width is None else to_float(switch_width, unit.nanometers, "switch_width")
+    if width is not None and width <= 0:
+        raise ValueError(f"switch_width must be positive, got {width} nm.")
+    tolerance = (
+        None
+        if ewald_error_tolerance is None
+        else to_dimensionless(ewald_error_tolerance, "ewald_error_tolerance", positive=True)
+    )
+    forces = [(i, f) for i, f in enumerate(system.getForces()) if _has_cutoff(f)]
+    if width is not None:
+        for index, force in forces:
+            cutoff = _nm(force.getCutoffDistance())
+            if cutoff - width <= 0:
+                raise ValueError(
+                    f"{_label(index, force)}: cutoff {cutoff:g} nm minus switch_width {width:g} nm is "
+                    f"{cutoff - width:g} nm, not a switching distance. Pass a switch_width below "
+                    f"{cutoff:g} nm (e.g. {0.1 * cutoff:g} nm), or a larger cutoff."
+                )
+    changes = []
+    for index, force in forces:
+        if width is not None:
+            changes.extend(_switch(index, force, width))
+        if tolerance is not None:
+            changes.extend(_tighten_ewald(index, force, tolerance))
+    return changes
+
+
+def _switch(index: int, force: mm.Force, width: float) -> list[str]:
+    """Switch ``force`` over its last ``width`` nm unless it already is (from there or closer in)."""
+    cutoff = _nm(force.getCutoffDistance())
+    target = cutoff - width
+    on, distance = force.getUseSwitchingFunction(), _nm(force.getSwitchingDistance())
+    if on and distance <= target + _SMALL:
+        return []
+    old = f"switching from {distance:g} nm" if on else "no switching function"
+    force.setUseSwitchingFunction(True)
+    force.setSwitchingDistance(target)
+    return [f"{_label(index, force)}: {old} → switching from {target:g} nm (cutoff {cutoff:g} nm)"]
+
+
+def _tighten_ewald(index: int, force: mm.Force, tolerance: float) -> list[str]:
+    if not isinstance(force, mm.NonbondedForce) or force.getNonbondedMethod() not in _EWALD_METHODS:
+        return []
+    old = force.getEwaldErrorTolerance()
+    if old <= tolerance:
+        return []
+    force.setEwaldErrorTolerance(tolerance)
+    return [f"{_label(index, force)}: Ewald error tolerance {old:g} → {tolerance:g}"]
+
+
+def apply_build_settings(
+    system: mm.System, cutoff: float, switch_distance: float | None, ewald_error_tolerance: float | None
+) -> None:
+    """Give a System fresh from ``createSystem`` a builder's settings exactly, through make_smooth.
+
+    For :func:`openmm_alphaprk.waterbox.build_water_box` and the ``systems/``
+    definitions, the same System ``createSystem(switchDistance=..., ewaldErrorTolerance=...)``
+    gives: the LJ switch from ``switch_distance`` (nm; None: no switch), and the Ewald
+    tolerance ``ewald_error_tolerance`` (None: OpenMM's default) even where it is
+    looser than OpenMM's default, which make_smooth would keep. make_smooth switches
+    from cutoff − (cutoff − s), which differs from s by round-off when s < cutoff/2;
+    s itself is set then.
+    """
+    width = None if switch_distance is None else cutoff - switch_distance
+    make_smooth(system, width, ewald_error_tolerance)
+    for force in system.getForces():
+        if switch_distance is not None and _has_cutoff(force):
+            force.setSwitchingDistance(switch_distance)
+        if ewald_error_tolerance is not None and isinstance(force, mm.NonbondedForce):
+            force.setEwaldErrorTolerance(ewald_error_tolerance)
+
+
+def warn_if_not_smooth(system: mm.System, stacklevel: int | None = None) -> bool:
+    """Issue one :class:`NonSmoothForcesWarning` listing all of ``system``'s problems, if any.
+
+    Parameters
+    ----------
+    system
+        The System an energy-mode integrator is about to run.
+    stacklevel
+        As for ``warnings.warn``, counted from the caller of this function (1: the
+        line that calls it). None (the default) points at the first frame outside
+        this package and OpenMM: the user's ``integrator.step(...)`` or
+        ``simulation.step(...)``.
+
+    Returns
+    -------
+    bool
+        True if a warning was issued.
+
+    """
+    problems = smoothness_problems(system)
+    if not problems:
+        return False
+    level = _outside_stacklevel() if stacklevel is None else int(stacklevel)
+    listed = "\n".join(f"  - {problem}" for problem in problems)
+    warnings.warn(
+        f"the energy-preserving mode needs smooth forces and an NVE System; {len(problems)} problem(s) "
+        f"found:\n{listed}\nSee docs/smooth_forces.md of openmm_alphaprk.",
+        NonSmoothForcesWarning,
+        stacklevel=level + 1,
+    )
+    return True
+
+
+_INTERNAL_DIRS = tuple(os.path.dirname(os.path.abspath(path)) + os.sep for path in (__file__, mm.__file__))
+
+
+def _outside_stacklevel() -> int:
+    """Return the stack level of the first frame outside this package and OpenMM (1: our caller's caller)."""
+    frame, level = sys._getframe(2), 1
+    while frame.f_back is not None and os.path.abspath(frame.f_code.co_filename).startswith(_INTERNAL_DIRS):
+        frame, level = frame.f_back, level + 1
+    return level
