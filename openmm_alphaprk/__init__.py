@@ -8,6 +8,7 @@ from .integrators import (
     restore_integrator,
 )
 from .smooth_forces import NonSmoothForcesWarning, make_smooth, smoothness_problems
+from .start_blowup import StartBlowUpError
 
 __all__ = [
     "AlphaRattleIntegrator",
@@ -15,6 +16,7 @@ __all__ = [
     "MidpointConvergenceError",
     "NonSmoothForcesWarning",
     "RattleIntegrator",
+    "StartBlowUpError",
     "make_smooth",
     "restore_integrator",
     "smoothness_problems",

@@ -315,6 +315,8 @@ class AlphaRattleIntegrator(_EnergyModeProgram):
             If the system has massless particles (virtual sites) and α ≠ 0, the
             energy mode, or a platform that places virtual sites only at the end of a
             step (Reference, CPU).
+        StartBlowUpError
+            If the state went to NaN in the first 100 steps (:mod:`openmm_alphaprk.start_blowup`).
         """
         failures = self.getGlobalVariableByName("midpoint_failures")
         super().step(steps)

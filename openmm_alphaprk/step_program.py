@@ -34,7 +34,7 @@ from typing import ClassVar
 import openmm as mm
 import openmm.unit as unit
 
-from . import platforms
+from . import platforms, start_blowup
 from ._triple_jump import GAMMA1, GAMMA2
 from ._units import to_dimensionless, to_float
 
@@ -256,18 +256,19 @@ class _StepProgram(mm.CustomIntegrator):
     def step(self, steps: int) -> None:
         """Advance the context by ``steps`` steps.
 
-        The first call looks up the context the integrator is bound to, prepares
-        the program for its system and platform, and refuses what it cannot do
-        right (see :class:`MasslessParticleError`) before taking a step.
+        The first call finds the bound context, prepares the program for its system and
+        platform, and refuses what it cannot do right (:class:`MasslessParticleError`);
+        a NaN in the first 100 steps raises :class:`~.start_blowup.StartBlowUpError`.
         """
         steps = int(steps)
         if steps <= 0:
             return
         if not getattr(self, "_prepared", False):
             context = platforms.find_context(self)
+            self._context_ref = start_blowup.context_reference(context)
             if context is None:
                 self._prepare_without_context()
-                mm.CustomIntegrator.step(self, 1)
+                start_blowup.take_steps(self, 1)
                 self._check_massive_after_first_step()
                 steps -= 1
             else:
@@ -275,7 +276,7 @@ class _StepProgram(mm.CustomIntegrator):
             self._prepared = True
         self._check_before_steps()
         if steps > 0:
-            mm.CustomIntegrator.step(self, steps)
+            start_blowup.take_steps(self, steps)
 
     def _prepare(self, context: mm.Context) -> None:
         """Check the system against the platform before the first step (subclasses add more)."""

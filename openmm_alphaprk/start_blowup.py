@@ -1,0 +1,104 @@
+"""A start the method cannot take: NaN in the first steps, reported with its likely causes.
+
+When a run goes to NaN within its first :data:`START_STEPS` steps, the cause is almost
+always the start, not the integrator's long-run stability: an unminimized structure,
+velocities far too hot, or a step larger than the method takes. OpenMM's own message
+("Particle coordinate is NaN") names none of these, and the Reference platform raises
+nothing at all. :func:`take_steps` runs a step program's steps, checks the first ones
+and raises :class:`StartBlowUpError` with the causes instead.
+"""
+
+from __future__ import annotations
+
+import re
+import weakref
+from collections.abc import Callable
+
+import numpy as np
+import openmm as mm
+import openmm.unit as unit
+
+__all__ = ["START_STEPS", "StartBlowUpError", "context_reference", "take_steps"]
+
+#: Steps from an integrator's first during which a NaN is reported as a bad start.
+START_STEPS = 100
+
+_NON_FINITE = re.compile(r"\bnan\b|\binfinite\b|non-finite|\binf\b", re.IGNORECASE)
+
+
+class StartBlowUpError(mm.OpenMMException):
+    """The state went to NaN in an integrator's first :data:`START_STEPS` steps (a start it cannot take)."""
+
+
+def context_reference(context: mm.Context | None) -> Callable[[], mm.Context | None]:
+    """Return a weak reference to an integrator's context (a cycle could free the two in the wrong order)."""
+    if context is None:
+        return lambda: None
+    return weakref.ref(context)
+
+
+def take_steps(integrator: mm.CustomIntegrator, steps: int) -> None:
+    """Run ``steps`` steps of ``integrator``'s program, checking those within the first :data:`START_STEPS`.
+
+    Steps up to step :data:`START_STEPS` run as one call (the same steps as part of a
+    longer one), after which the velocities are checked for NaN; steps after it run
+    unchecked.
+
+    Raises
+    ------
+    StartBlowUpError
+        If the first steps raised OpenMM's NaN error, or left non-finite velocities
+        (on the Reference platform, which raises nothing). The original message is
+        appended.
+    """
+    checked = 0 if getattr(integrator, "_past_start", False) else START_STEPS - _steps_taken(integrator)
+    if checked <= 0:
+        integrator._past_start = True
+        mm.CustomIntegrator.step(integrator, steps)
+        return
+    first = min(steps, checked)
+    try:
+        mm.CustomIntegrator.step(integrator, first)
+    except mm.OpenMMException as error:
+        if isinstance(error, StartBlowUpError) or not _NON_FINITE.search(str(error)):
+            raise
+        raise StartBlowUpError(_message(integrator, f"OpenMM said: {error}")) from error
+    context = getattr(integrator, "_context_ref", lambda: None)()
+    if context is not None:
+        velocities = context.getState(getVelocities=True).getVelocities(asNumpy=True)
+        if not np.isfinite(velocities.value_in_unit(unit.nanometers / unit.picoseconds)).all():
+            raise StartBlowUpError(
+                _message(integrator, f"The velocities were not finite after step {_steps_taken(integrator)}.")
+            )
+    if steps > first:
+        take_steps(integrator, steps - first)
+
+
+def _steps_taken(integrator: mm.CustomIntegrator) -> int:
+    return int(integrator.getGlobalVariableByName("steps_taken"))
+
+
+def _message(integrator: mm.CustomIntegrator, original: str) -> str:
+    """Return the likely causes of a blow-up at the start, for this integrator, then ``original``."""
+    step_fs = integrator.getStepSize().value_in_unit(unit.femtoseconds)
+    name = type(integrator).__name__
+    order4 = getattr(integrator, "order", 2) == 4
+    if order4:
+        large = (
+            f"too large a step (this one is {step_fs:g} fs) for α-RATTLE-4: its sub-steps are 1.35h and "
+            "−1.70h, so its largest stable step is below RATTLE's; use at most 2 fs with constraints "
+            "(SETTLE, HBonds), or RattleIntegrator for larger steps"
+        )
+    else:
+        large = (
+            f"too large a step (this one is {step_fs:g} fs): about 2 fs is the limit with constraints on "
+            "bonds to hydrogen (SETTLE, HBonds), about 1 fs without"
+        )
+    return (
+        f"{name} blew up in its first {START_STEPS} steps, which points at the start rather than at "
+        "the method. Likely causes: (1) an unminimized start: run openmm.LocalEnergyMinimizer.minimize "
+        "(simulation.minimizeEnergy()) and equilibrate (e.g. with LangevinMiddleIntegrator) before "
+        "the NVE run; (2) too hot a start: velocities far above the intended temperature "
+        "(context.setVelocitiesToTemperature); (3) "
+        f"{large}. {original}"
+    )
