@@ -10,6 +10,7 @@ import openmm.app as app
 import openmm.unit as unit
 
 from ._units import to_float
+from .smooth_forces import apply_build_settings
 
 
 @dataclass
@@ -107,9 +108,8 @@ def build_water_box(
         constraints=app.HBonds,
         rigidWater=True,
         removeCMMotion=False,
-        ewaldErrorTolerance=ewald,
-        switchDistance=None if switch is None else switch * unit.nanometers,
     )
+    apply_build_settings(system, rc, switch, ewald)  # make_smooth, with these settings exactly
     integrator = mm.LangevinMiddleIntegrator(kelvin, 5.0, 0.002)
     integrator.setRandomNumberSeed(seed)
     integrator.setConstraintTolerance(1e-10)

@@ -11,6 +11,7 @@ import openmm.app as app
 import openmm.unit as unit
 from tqdm import tqdm
 
+from ..smooth_forces import apply_build_settings
 from .definitions import DefinitionError, SystemDefinition
 
 #: Constraint tolerance of the final projection of the equilibrated state (relative).
@@ -46,17 +47,19 @@ def create_system(definition: SystemDefinition, topology: app.Topology, forcefie
         "rigidWater": True,
         "removeCMMotion": False,
     }
-    if build["nonbonded_method"] == "PME":
-        kwargs.update(nonbondedMethod=app.PME, nonbondedCutoff=float(build["cutoff_nm"]) * unit.nanometers)
-        # smooth forces at the cutoff (see waterbox.build_water_box): otherwise the energy
-        # error of any integrator is dominated by pairs crossing the cutoff
-        if "switch_distance_nm" in build:
-            kwargs["switchDistance"] = float(build["switch_distance_nm"]) * unit.nanometers
-        if "ewald_error_tolerance" in build:
-            kwargs["ewaldErrorTolerance"] = float(build["ewald_error_tolerance"])
-    else:
-        kwargs.update(nonbondedMethod=app.NoCutoff)
-    return forcefield.createSystem(topology, **kwargs)
+    if build["nonbonded_method"] != "PME":
+        return forcefield.createSystem(topology, nonbondedMethod=app.NoCutoff, **kwargs)
+    cutoff = float(build["cutoff_nm"])
+    system = forcefield.createSystem(
+        topology, nonbondedMethod=app.PME, nonbondedCutoff=cutoff * unit.nanometers, **kwargs
+    )
+    # smooth forces at the cutoff (make_smooth; see waterbox.build_water_box): otherwise
+    # the energy error of any integrator is dominated by pairs crossing the cutoff
+    switch, ewald = build.get("switch_distance_nm"), build.get("ewald_error_tolerance")
+    apply_build_settings(
+        system, cutoff, None if switch is None else float(switch), None if ewald is None else float(ewald)
+    )
+    return system
 
 
 def equilibrate(
