@@ -1,0 +1,390 @@
+"""Smooth forces (make_smooth, smoothness_problems, the energy mode's warning) and StartBlowUpError."""
+
+from __future__ import annotations
+
+import warnings
+import xml.etree.ElementTree as ET
+
+import numpy as np
+import openmm as mm
+import openmm.app as app
+import openmm.unit as unit
+import pytest
+
+import openmm_alphaprk
+from openmm_alphaprk import (
+    AlphaRattleIntegrator,
+    NonSmoothForcesWarning,
+    RattleIntegrator,
+    StartBlowUpError,
+    make_smooth,
+    smoothness_problems,
+)
+from openmm_alphaprk import start_blowup as start_blowup_module
+
+
+@pytest.fixture(scope="module")
+def water():
+    """A ~2 nm TIP3P box from Modeller, briefly minimized with OpenMM's default (unsmooth) PME."""
+    forcefield = app.ForceField("amber14/tip3p.xml")
+    modeller = app.Modeller(app.Topology(), [])
+    modeller.addSolvent(forcefield, model="tip3p", boxSize=mm.Vec3(2.0, 2.0, 2.0) * unit.nanometers)
+    system = _create(forcefield, modeller.topology)
+    context = mm.Context(system, mm.VerletIntegrator(0.001), mm.Platform.getPlatformByName("CPU"))
+    context.setPositions(modeller.positions)
+    mm.LocalEnergyMinimizer.minimize(context, 10.0, 50)
+    positions = context.getState(getPositions=True).getPositions()
+    return forcefield, modeller.topology, positions
+
+
+def _create(forcefield, topology, **kwargs):
+    return forcefield.createSystem(
+        topology,
+        nonbondedMethod=app.PME,
+        nonbondedCutoff=0.9 * unit.nanometers,
+        constraints=app.HBonds,
+        rigidWater=True,
+        removeCMMotion=False,
+        **kwargs,
+    )
+
+
+def _context(system, integrator, positions, platform="CPU"):
+    context = mm.Context(system, integrator, mm.Platform.getPlatformByName(platform))
+    context.setPositions(positions)
+    context.setVelocitiesToTemperature(300, 7)
+    context.applyVelocityConstraints(1e-10)
+    return context
+
+
+def _ours(record):
+    return [w for w in record if issubclass(w.category, NonSmoothForcesWarning)]
+
+
+# ------------------------------------------------------------------ the warning
+@pytest.mark.parametrize("order", [2, 4])
+def test_energy_mode_warns_once_at_the_first_step_pointing_at_the_users_call(water, order):
+    forcefield, topology, positions = water
+    integrator = AlphaRattleIntegrator(0.001, alpha="energy", order=order)
+    context = _context(_create(forcefield, topology), integrator, positions)
+    with pytest.warns(NonSmoothForcesWarning, match="without a switching function") as record:
+        integrator.step(1)
+    (warning,) = _ours(record)
+    assert warning.filename == __file__  # the line above, not inside the package
+    assert "Ewald error tolerance of 0.0005" in str(warning.message)
+    assert "openmm_alphaprk.make_smooth(system)" in str(warning.message)
+    with warnings.catch_warnings(record=True) as again:
+        warnings.simplefilter("always")
+        integrator.step(1)
+    assert not _ours(again)  # once per integrator
+    del context
+
+
+def test_warning_from_simulation_step_points_at_the_users_line(water):
+    forcefield, topology, positions = water
+    integrator = AlphaRattleIntegrator(0.001, alpha="energy", order=4)
+    simulation = app.Simulation(
+        topology, _create(forcefield, topology), integrator, mm.Platform.getPlatformByName("CPU")
+    )
+    simulation.context.setPositions(positions)
+    with pytest.warns(NonSmoothForcesWarning) as record:
+        simulation.step(1)
+    (warning,) = _ours(record)
+    assert warning.filename == __file__  # not openmm/app/simulation.py
+
+
+def test_no_warning_after_make_smooth(water):
+    forcefield, topology, positions = water
+    system = _create(forcefield, topology)
+    assert len(make_smooth(system)) == 2  # switch on, Ewald tightened
+    assert smoothness_problems(system) == []
+    integrator = AlphaRattleIntegrator(0.001, alpha="energy", order=4)
+    context = _context(system, integrator, positions)
+    with warnings.catch_warnings(record=True) as record:
+        warnings.simplefilter("always")
+        integrator.step(2)
+    assert not _ours(record)
+    del context
+
+
+@pytest.mark.parametrize(
+    "make",
+    [
+        lambda: AlphaRattleIntegrator(0.001, alpha=0.1),
+        lambda: AlphaRattleIntegrator(0.001, alpha=0.0, order=4),
+        lambda: RattleIntegrator(0.001),
+    ],
+    ids=["alpha=0.1", "alpha4=0", "rattle"],
+)
+def test_fixed_alpha_and_rattle_do_not_warn(water, make):
+    forcefield, topology, positions = water
+    integrator = make()
+    context = _context(_create(forcefield, topology), integrator, positions)
+    with warnings.catch_warnings(record=True) as record:
+        warnings.simplefilter("always")
+        integrator.step(2)
+    assert not _ours(record)
+    del context
+
+
+# ------------------------------------------------------- smoothness_problems
+def _particles(force, n=2):
+    for _ in range(n):
+        if isinstance(force, mm.NonbondedForce):
+            force.addParticle(0.0, 0.3, 0.5)
+        else:
+            force.addParticle([])
+    return force
+
+
+def _small_system(*forces):
+    system = mm.System()
+    for _ in range(2):
+        system.addParticle(16.0)
+    system.setDefaultPeriodicBoxVectors(mm.Vec3(3, 0, 0), mm.Vec3(0, 3, 0), mm.Vec3(0, 0, 3))
+    for force in forces:
+        system.addForce(force)
+    return system
+
+
+def _nonbonded(method=mm.NonbondedForce.PME, switch=0.8, ewald=1e-5):
+    force = _particles(mm.NonbondedForce())
+    force.setNonbondedMethod(method)
+    force.setCutoffDistance(0.9)
+    if switch is not None:
+        force.setUseSwitchingFunction(True)
+        force.setSwitchingDistance(switch)
+    force.setEwaldErrorTolerance(ewald)
+    return force
+
+
+def _custom(switch=None):
+    force = _particles(mm.CustomNonbondedForce("4*((0.3/r)^12 - (0.3/r)^6)"))
+    force.setNonbondedMethod(mm.CustomNonbondedForce.CutoffPeriodic)
+    force.setCutoffDistance(0.9)
+    if switch is not None:
+        force.setUseSwitchingFunction(True)
+        force.setSwitchingDistance(switch)
+    return force
+
+
+@pytest.mark.parametrize(
+    ("force", "words"),
+    [
+        (lambda: mm.CMMotionRemover(), ["CMMotionRemover", "removeCMMotion=False", "reference energy"]),
+        (lambda: mm.MonteCarloBarostat(1.0, 300.0), ["MonteCarloBarostat", "remove the barostat"]),
+        (
+            lambda: mm.MonteCarloAnisotropicBarostat(mm.Vec3(1, 1, 1), 300.0),
+            ["MonteCarloAnisotropicBarostat", "NVE"],
+        ),
+        (
+            lambda: mm.MonteCarloMembraneBarostat(
+                1.0,
+                0.0,
+                300.0,
+                mm.MonteCarloMembraneBarostat.XYIsotropic,
+                mm.MonteCarloMembraneBarostat.ZFree,
+            ),
+            ["MonteCarloMembraneBarostat", "NVE"],
+        ),
+        (lambda: mm.MonteCarloFlexibleBarostat(1.0, 300.0), ["MonteCarloFlexibleBarostat", "NVE"]),
+        (lambda: mm.AndersenThermostat(300.0, 1.0), ["AndersenThermostat", "needs no thermostat"]),
+        (lambda: _nonbonded(ewald=5e-4), ["Ewald error tolerance of 0.0005", "make_smooth(system)"]),
+        (lambda: _nonbonded(method=mm.NonbondedForce.LJPME, ewald=1e-4), ["tolerance of 0.0001"]),
+        (lambda: _nonbonded(switch=None), ["NonbondedForce", "without a switching function", "make_smooth"]),
+        (lambda: _custom(), ["CustomNonbondedForce", "without a switching function", "make_smooth"]),
+    ],
+    ids=[
+        "cmmotion",
+        "barostat",
+        "anisotropic",
+        "membrane",
+        "flexible",
+        "andersen",
+        "loose-pme",
+        "loose-ljpme",
+        "unswitched",
+        "unswitched-custom",
+    ],
+)
+def test_each_problem_is_reported_with_its_fix(force, words):
+    system = _small_system(_nonbonded(), force())
+    (problem,) = smoothness_problems(system)
+    for word in words:
+        assert word in problem
+    assert "(force 1)" in problem
+
+
+def test_a_smooth_system_and_forces_without_cutoff_have_no_problems():
+    no_cutoff = _nonbonded(method=mm.NonbondedForce.NoCutoff, switch=None, ewald=5e-4)
+    assert smoothness_problems(_small_system(_nonbonded(), _custom(switch=0.85), no_cutoff)) == []
+
+
+def test_warn_if_not_smooth_issues_one_warning_listing_every_problem():
+    system = _small_system(_nonbonded(switch=None, ewald=5e-4), mm.CMMotionRemover())
+    with pytest.warns(NonSmoothForcesWarning) as record:
+        assert openmm_alphaprk.smooth_forces.warn_if_not_smooth(system, stacklevel=1)
+    assert len(record) == 1 and str(record[0].message).count("\n  - ") == 3
+    assert record[0].filename == __file__
+    assert not openmm_alphaprk.smooth_forces.warn_if_not_smooth(_small_system(_nonbonded()))
+
+
+# ------------------------------------------------------------------ make_smooth
+def _attribute_changes(before: str, after: str) -> set[tuple[int, str, str, str]]:
+    """(force index, attribute, old, new) for every attribute that differs between two System XMLs."""
+    old_root, new_root = ET.fromstring(before), ET.fromstring(after)
+    old_elements, new_elements = list(old_root.iter()), list(new_root.iter())
+    assert [e.tag for e in old_elements] == [e.tag for e in new_elements]  # same structure
+    forces = list(old_root.find("Forces"))
+    owner = {id(sub): i for i, force in enumerate(forces) for sub in force.iter()}
+    changes = set()
+    for old, new in zip(old_elements, new_elements):
+        assert old.text == new.text
+        for key in set(old.attrib) | set(new.attrib):
+            if old.attrib.get(key) != new.attrib.get(key):
+                changes.add((owner.get(id(old), -1), key, old.attrib.get(key), new.attrib.get(key)))
+    return changes
+
+
+def test_make_smooth_changes_exactly_what_it_says(water):
+    forcefield, topology, _ = water
+    system = _create(forcefield, topology)  # NonbondedForce: PME, no switch, Ewald 5e-4
+    custom = _particles(mm.CustomNonbondedForce("0"), system.getNumParticles())
+    custom.setNonbondedMethod(mm.CustomNonbondedForce.CutoffPeriodic)
+    custom.setCutoffDistance(1.0)
+    custom.setUseSwitchingFunction(True)
+    custom.setSwitchingDistance(0.95)  # switched, but over less than 0.1 nm: moved to 0.9
+    close = _particles(mm.CustomNonbondedForce("0"), system.getNumParticles())
+    close.setNonbondedMethod(mm.CustomNonbondedForce.CutoffPeriodic)
+    close.setCutoffDistance(0.9)
+    close.setUseSwitchingFunction(True)
+    close.setSwitchingDistance(0.5)  # already switched from further in: left alone
+    custom_index = system.addForce(custom)
+    system.addForce(close)
+    nonbonded_index = next(i for i, f in enumerate(system.getForces()) if isinstance(f, mm.NonbondedForce))
+    before = mm.XmlSerializer.serialize(system)
+    lines = make_smooth(system)
+    after = mm.XmlSerializer.serialize(system)
+    assert _attribute_changes(before, after) == {
+        (nonbonded_index, "useSwitchingFunction", "0", "1"),
+        (nonbonded_index, "switchingDistance", "-1", ".8"),
+        (nonbonded_index, "ewaldTolerance", ".0005", "1e-05"),
+        (custom_index, "switchingDistance", ".95", ".9"),
+    }
+    assert len(lines) == 3
+    assert any(
+        f"(force {nonbonded_index})" in x and "no switching function → switching from 0.8 nm" in x
+        for x in lines
+    )
+    assert any(f"(force {nonbonded_index})" in x and "0.0005 → 1e-05" in x for x in lines)
+    assert any(f"(force {custom_index})" in x and "0.95 nm → switching from 0.9 nm" in x for x in lines)
+    assert make_smooth(system) == [] and mm.XmlSerializer.serialize(system) == after  # idempotent
+
+
+@pytest.mark.parametrize("width", [0.2, 0.2 * unit.nanometers, 2.0 * unit.angstroms])
+def test_make_smooth_takes_quantities_or_nanometres(width):
+    system = _small_system(_nonbonded(switch=None, ewald=1e-6))
+    (line,) = make_smooth(system, switch_width=width)  # Ewald 1e-6 is tighter: kept
+    force = system.getForce(0)
+    assert force.getSwitchingDistance().value_in_unit(unit.nanometers) == pytest.approx(0.7)
+    assert force.getEwaldErrorTolerance() == 1e-6 and "0.7 nm" in line
+
+
+def test_make_smooth_refuses_a_switch_wider_than_the_cutoff_and_changes_nothing():
+    system = _small_system(_nonbonded(switch=None, ewald=5e-4))
+    before = mm.XmlSerializer.serialize(system)
+    with pytest.raises(
+        ValueError, match=r"cutoff 0.9 nm minus switch_width 1 nm .*switch_width below 0.9 nm"
+    ):
+        make_smooth(system, switch_width=1.0)
+    assert mm.XmlSerializer.serialize(system) == before
+
+
+# ------------------------------------------------------------------ start blow-up
+def _hot_start(system, positions, integrator, platform):
+    context = mm.Context(system, integrator, mm.Platform.getPlatformByName(platform))
+    context.setPositions(positions)
+    rng = np.random.default_rng(3)
+    context.setVelocities(rng.normal(0.0, 1e3, (system.getNumParticles(), 3)))  # ~1e3 nm/ps
+    return context
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    """A few TIP3P waters in vacuum (NoCutoff): Reference goes to NaN without raising anything."""
+    forcefield = app.ForceField("amber14/tip3p.xml")
+    modeller = app.Modeller(app.Topology(), [])
+    modeller.addSolvent(forcefield, model="tip3p", boxSize=mm.Vec3(1.0, 1.0, 1.0) * unit.nanometers)
+    system = forcefield.createSystem(
+        modeller.topology, nonbondedMethod=app.NoCutoff, rigidWater=True, removeCMMotion=False
+    )
+    return system, modeller.positions
+
+
+def test_start_blow_up_on_cpu_names_the_causes_and_keeps_openmms_message(water):
+    forcefield, topology, positions = water
+    integrator = AlphaRattleIntegrator(0.002, alpha=0.0, order=4)
+    context = _hot_start(make_smooth_system(forcefield, topology), positions, integrator, "CPU")
+    with pytest.raises(StartBlowUpError) as caught:
+        integrator.step(5)
+    message = str(caught.value)
+    for words in ("first 100 steps", "LocalEnergyMinimizer", "minimizeEnergy", "too hot", "1.35h", "−1.70h"):
+        assert words in message
+    assert "RattleIntegrator" in message and "2 fs" in message
+    assert message.endswith(str(caught.value.__cause__))  # OpenMM's own message, appended
+    assert "Particle coordinate is NaN" in message
+    assert isinstance(caught.value, mm.OpenMMException)
+    del context
+
+
+def make_smooth_system(forcefield, topology):
+    system = _create(forcefield, topology)
+    make_smooth(system)
+    return system
+
+
+def test_start_blow_up_on_reference_is_found_from_the_velocities(cluster):
+    system, positions = cluster
+    integrator = RattleIntegrator(0.002)
+    context = _hot_start(system, positions, integrator, "Reference")
+    with pytest.raises(StartBlowUpError, match=r"not finite after step \d+") as caught:
+        integrator.step(3)
+    assert "unminimized" in str(caught.value) and "1.35h" not in str(caught.value)
+    del context
+
+
+def test_the_blow_up_scenarios_are_real_without_the_check(cluster, water, monkeypatch):
+    """Without take_steps' check the same starts give NaN (Reference) or OpenMM's bare error (CPU)."""
+    monkeypatch.setattr(
+        start_blowup_module,
+        "take_steps",
+        lambda integrator, steps: mm.CustomIntegrator.step(integrator, steps),
+    )
+    system, positions = cluster
+    integrator = RattleIntegrator(0.002)
+    context = _hot_start(system, positions, integrator, "Reference")
+    integrator.step(3)  # raises nothing
+    velocities = context.getState(getVelocities=True).getVelocities(asNumpy=True)._value
+    assert not np.isfinite(velocities).all()
+    forcefield, topology, water_positions = water
+    integrator = AlphaRattleIntegrator(0.002, alpha=0.0, order=4)
+    context = _hot_start(make_smooth_system(forcefield, topology), water_positions, integrator, "CPU")
+    with pytest.raises(mm.OpenMMException, match="NaN") as caught:
+        integrator.step(5)
+    assert type(caught.value) is mm.OpenMMException
+
+
+def test_after_100_steps_openmms_error_passes_unchanged(water, cluster):
+    forcefield, topology, positions = water
+    integrator = AlphaRattleIntegrator(0.002, alpha=0.0, order=4)
+    context = _hot_start(make_smooth_system(forcefield, topology), positions, integrator, "CPU")
+    integrator.setGlobalVariableByName("steps_taken", 100)
+    with pytest.raises(mm.OpenMMException, match="Particle coordinate is NaN") as caught:
+        integrator.step(5)
+    assert type(caught.value) is mm.OpenMMException
+    system, cluster_positions = cluster
+    integrator = RattleIntegrator(0.002)
+    context = _hot_start(system, cluster_positions, integrator, "Reference")
+    integrator.setGlobalVariableByName("steps_taken", 100)
+    integrator.step(2)  # NaN, but not checked after the start
+    del context
