@@ -2,8 +2,11 @@
 
 Everything here is plain OpenMM (ForceField, Modeller, Simulation, StateDataReporter,
 DCDReporter, CheckpointReporter); only the integrator line differs from a
-VerletIntegrator script. NVE needs ``removeCMMotion=False`` (the CMMotionRemover
-changes velocities, which breaks energy bookkeeping).
+VerletIntegrator script, and ``make_smooth(system)``, which switches Lennard-Jones off
+over the last 0.1 nm of the cutoff and tightens PME's error tolerance to 1e-5 so that
+the energy is smooth (docs/smooth_forces.md). NVE needs ``removeCMMotion=False`` (α-RATTLE
+never applies a CMMotionRemover, which would only make OpenMM count 3 degrees of freedom
+fewer in the temperature).
 
     python examples/simulation_dropin.py --steps 1000 --output dropin-run
 """
@@ -16,7 +19,7 @@ import openmm as mm
 import openmm.app as app
 import openmm.unit as unit
 
-from openmm_alphaprk import AlphaRattleIntegrator
+from openmm_alphaprk import AlphaRattleIntegrator, make_smooth
 
 parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
 parser.add_argument("--steps", type=int, default=1000, help="NVE steps of 2 fs (default 1000)")
@@ -38,6 +41,8 @@ system = forcefield.createSystem(
     rigidWater=True,
     removeCMMotion=False,
 )
+for change in make_smooth(system):  # smooth forces at the cutoff: the energy mode needs them
+    print(change)
 
 alpha = args.alpha if args.alpha == "energy" else float(args.alpha)
 integrator = AlphaRattleIntegrator(2 * unit.femtoseconds, alpha=alpha)  # the only α-RATTLE line
