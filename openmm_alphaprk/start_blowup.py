@@ -67,9 +67,8 @@ def take_steps(integrator: mm.CustomIntegrator, steps: int) -> None:
     if context is not None:
         velocities = context.getState(getVelocities=True).getVelocities(asNumpy=True)
         if not np.isfinite(velocities.value_in_unit(unit.nanometers / unit.picoseconds)).all():
-            raise StartBlowUpError(
-                _message(integrator, f"The velocities were not finite after step {_steps_taken(integrator)}.")
-            )
+            found = f"The velocities were NaN or infinite after step {_steps_taken(integrator)}."
+            raise StartBlowUpError(_message(integrator, found))
     if steps > first:
         take_steps(integrator, steps - first)
 
