@@ -187,24 +187,16 @@ def make_smooth(
         If cutoff − ``switch_width`` ≤ 0 for some force (nothing is changed then).
 
     """
-    width = None if switch_width is None else to_float(switch_width, unit.nanometers, "switch_width")
-    if width is not None and width <= 0:
-        raise ValueError(f"switch_width must be positive, got {width} nm.")
-    tolerance = (
-        None
-        if ewald_error_tolerance is None
-        else to_dimensionless(ewald_error_tolerance, "ewald_error_tolerance", positive=True)
-    )
+    width = None
+    if switch_width is not None:
+        width = to_float(switch_width, unit.nanometers, "switch_width", positive=True)
+    tolerance = None
+    if ewald_error_tolerance is not None:
+        tolerance = to_dimensionless(ewald_error_tolerance, "ewald_error_tolerance", positive=True)
     forces = [(i, f) for i, f in enumerate(system.getForces()) if _has_cutoff(f)]
-    if width is not None:
+    if width is not None:  # check every force before changing any
         for index, force in forces:
-            cutoff = _nm(force.getCutoffDistance())
-            if cutoff - width <= 0:
-                raise ValueError(
-                    f"{_label(index, force)}: cutoff {cutoff:g} nm minus switch_width {width:g} nm is "
-                    f"{cutoff - width:g} nm, not a switching distance. Pass a switch_width below "
-                    f"{cutoff:g} nm (e.g. {0.1 * cutoff:g} nm), or a larger cutoff."
-                )
+            _check_switch_width(index, force, width)
     changes = []
     for index, force in forces:
         if width is not None:
@@ -212,6 +204,16 @@ def make_smooth(
         if tolerance is not None:
             changes.extend(_tighten_ewald(index, force, tolerance))
     return changes
+
+
+def _check_switch_width(index: int, force: mm.Force, width: float) -> None:
+    cutoff = _nm(force.getCutoffDistance())
+    if cutoff - width <= 0:
+        raise ValueError(
+            f"{_label(index, force)}: cutoff {cutoff:g} nm minus switch_width {width:g} nm is "
+            f"{cutoff - width:g} nm, not a switching distance. Pass a switch_width below "
+            f"{cutoff:g} nm (e.g. {0.1 * cutoff:g} nm), or a larger cutoff."
+        )
 
 
 def _switch(index: int, force: mm.Force, width: float) -> list[str]:
