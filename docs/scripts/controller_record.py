@@ -46,8 +46,6 @@ if order == 0:
 else:
     integ = AlphaRattleIntegrator(2 * u.femtosecond, alpha="energy", order=order)
 
-    if os.environ.get("NOTRUST"):
-        integ.setGlobalVariableByName("adapt_trust", 0.0)
 c = ctx(integ)
 e0 = H(c)
 rec = []
