@@ -1,0 +1,59 @@
+"""The energy benchmark runs the package's systems in one run and reports ratios against RATTLE."""
+
+import json
+
+import pytest
+
+from openmm_alphaprk import energy_benchmark
+from openmm_alphaprk.energy_benchmark import EnergyRow, main, ratios_to_rattle
+
+
+def _row(name: str, rms: float, evals: float) -> EnergyRow:
+    return EnergyRow(name, 10, 0.0, rms, rms, evals)
+
+
+def test_ratios_against_rattle_at_the_same_step_and_at_equal_cost():
+    rows = [_row("RATTLE", 1.0, 1), _row("α-RATTLE-4 energy", 0.02, 7.2), _row("RATTLE h/7", 0.05, 7)]
+    rows.append(_row("α-RATTLE-4 α=0", 0.1, 3))
+    ratios = ratios_to_rattle(rows)
+    assert ratios["α-RATTLE-4 energy"] == pytest.approx(
+        {"rms_vs_rattle": 50.0, "rms_vs_rattle_equal_cost": 2.5}
+    )
+    assert ratios["α-RATTLE-4 α=0"] == pytest.approx(
+        {"rms_vs_rattle": 10.0}
+    )  # 3 evaluations: no equal-cost row
+    assert "RATTLE" not in ratios and "RATTLE h/7" not in ratios
+
+
+def test_a_package_system_runs_with_the_ratios_in_table_and_json(tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("ALPHAPRK_CACHE_DIR", str(tmp_path / "cache"))
+    out = tmp_path / "energy.json"
+    args = ["--system", "water-cluster", "--time", "0.01", "--json", str(out)]
+    assert main([*args, "--only", "α-RATTLE-4 energy"]) == 0
+    printed = capsys.readouterr().out
+    assert "system water-cluster" in printed and "at equal cost" in printed
+    result = json.loads(out.read_text(encoding="utf-8"))["water-cluster"]
+    rows = {row["name"]: row for row in result["rows"]}
+    k = round(rows["α-RATTLE-4 energy"]["force_evaluations_per_step"])
+    assert list(rows) == ["RATTLE", "α-RATTLE-4 energy", f"RATTLE h/{k}"]
+    assert all(row["steps"] == 5 for row in rows.values())
+    ratio = result["ratios"]["α-RATTLE-4 energy"]
+    assert ratio["rms_vs_rattle"] == pytest.approx(
+        rows["RATTLE"]["rms_residual"] / rows["α-RATTLE-4 energy"]["rms_residual"]
+    )
+    assert ratio["rms_vs_rattle_equal_cost"] == pytest.approx(
+        rows[f"RATTLE h/{k}"]["rms_residual"] / rows["α-RATTLE-4 energy"]["rms_residual"]
+    )
+
+
+def test_a_system_named_twice_is_refused(capsys):
+    with pytest.raises(SystemExit):
+        main(["--system", "water-cluster", "water-cluster"])
+    assert "named twice" in capsys.readouterr().err
+
+
+def test_unknown_system_is_refused_before_any_work(capsys):
+    with pytest.raises(SystemExit):
+        main(["--system", "no-such-box"])
+    assert "unknown system(s) ['no-such-box']" in capsys.readouterr().err
+    assert energy_benchmark.list_systems()  # the message's list comes from the definitions
