@@ -15,7 +15,7 @@ import openmm as mm
 
 from openmm_alphaprk.analysis import ConstraintDeviation, Diffusion, energy_drift, oxygen_rdf
 from openmm_alphaprk.driver import run_nve
-from openmm_alphaprk.energy_benchmark import degrees_of_freedom
+from openmm_alphaprk.observables import degrees_of_freedom
 from openmm_alphaprk.rundir import read_energies
 
 parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)

@@ -20,9 +20,9 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 import openmm as mm
-import openmm.unit as unit
 
 from .integrators import AlphaRattleIntegrator, RattleIntegrator
+from .observables import total_energy
 from .step_program import _StepProgram
 from .waterbox import WaterBox, build_water_box
 
@@ -84,11 +84,6 @@ def _context(
     context.setPositions(box.positions)
     context.setVelocities(box.velocities)
     return context
-
-
-def _total_energy(context: mm.Context) -> float:
-    state = context.getState(getEnergy=True)
-    return (state.getPotentialEnergy() + state.getKineticEnergy()).value_in_unit(unit.kilojoules_per_mole)
 
 
 def interleaved_timing(
@@ -190,11 +185,11 @@ def run_benchmark(
             print(f"energy pass: {row.name}", file=sys.stderr, flush=True)
         integrator = make()
         context = _context(box, integrator, plat, constraint_tolerance, properties)
-        e0 = _total_energy(context)
+        e0 = total_energy(context)
         residuals = []
         for _ in range(energy_steps):
             integrator.step(1)
-            residuals.append(_total_energy(context) - e0)
+            residuals.append(total_energy(context) - e0)
         row.energy_rms = float(np.sqrt(np.mean(np.square(residuals))))
     return rows
 

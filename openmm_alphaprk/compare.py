@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import os
-import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -15,6 +14,7 @@ from . import rundir
 from ._units import to_float
 from .driver import RunSummary, run_nve, run_parameters
 from .integrator_specs import IntegratorSpec, check_compatible, parse_integrator
+from .observables import VERLET_IS_LEAPFROG
 from .systems import PreparedSystem, load_definition, prepare_system
 
 DEFAULT_SYSTEM = "tip3p-3nm"
@@ -22,10 +22,7 @@ DEFAULT_INTEGRATORS = ("rattle", "energy", "energy4", "alpha4=0", "verlet")
 COMPARISON_FILE = "comparison.json"
 FIGURE_FILE = "energy_residuals.png"
 
-VERLET_NOTE = (
-    "verlet = openmm.VerletIntegrator (leapfrog): its State kinetic energy is a half-step estimate, so "
-    "its H - E_ref is not comparable step for step with the velocity-Verlet integrators; compare drift."
-)
+VERLET_NOTE = "verlet = " + VERLET_IS_LEAPFROG
 
 
 @dataclass
@@ -183,7 +180,7 @@ def compare(
 
 def run_directory_name(spec: IntegratorSpec) -> str:
     """Return a folder name for an integrator (``alpha=1/6`` → ``alpha=1_6``)."""
-    return re.sub(r"[^A-Za-z0-9.=+-]", "_", spec.name)
+    return rundir.folder_name(spec.name)
 
 
 def format_table(summaries: Sequence[RunSummary], header: str = "", verlet_note: bool = True) -> str:

@@ -26,8 +26,15 @@ from tqdm import tqdm
 from . import rundir
 from ._units import to_dimensionless, to_float
 from .analysis.energy import EnergyDrift, energy_drift
-from .energy_benchmark import degrees_of_freedom
 from .integrator_specs import IntegratorSpec, check_compatible, make_integrator, parse_integrator
+from .observables import (
+    VERLET_IS_LEAPFROG,
+    degrees_of_freedom,
+    masses,
+    momenta,
+    positive_int,
+    system_constraint_errors,
+)
 from .reporters import (
     AlphaControllerReporter,
     VelocityDCDReporter,
@@ -196,9 +203,9 @@ def run_nve(
     """
     spec = parse_integrator(integrator)
     timestep_ps = to_float(timestep, unit.picoseconds, "timestep", positive=True)
-    steps = _positive_int(steps, "steps")
+    steps = positive_int(steps, "steps")
     intervals = {
-        name: _positive_int(value, name)
+        name: positive_int(value, name)
         for name, value in (
             ("energy_interval", energy_interval),
             ("trajectory_interval", trajectory_interval),
@@ -206,7 +213,7 @@ def run_nve(
         )
     }
     if velocity_interval is not None:
-        intervals["velocity_interval"] = _positive_int(velocity_interval, "velocity_interval")
+        intervals["velocity_interval"] = positive_int(velocity_interval, "velocity_interval")
     if velocity_seed is not None and (isinstance(velocity_seed, bool) or not isinstance(velocity_seed, int)):
         raise ValueError(f"velocity_seed must be an integer or None, got {velocity_seed!r}.")
     tolerance = to_dimensionless(constraint_tolerance, "constraint_tolerance", positive=True)
@@ -214,7 +221,7 @@ def run_nve(
     if cpu_threads is not None:
         if platform != "CPU":
             raise ValueError(f"cpu_threads applies to the CPU platform only, not {platform}; leave it unset.")
-        properties["Threads"] = str(_positive_int(cpu_threads, "cpu_threads"))
+        properties["Threads"] = str(positive_int(cpu_threads, "cpu_threads"))
     if not isinstance(system, PreparedSystem):
         from .systems import load_definition
 
@@ -392,7 +399,7 @@ def summarize(
         drift = EnergyDrift(energies[0, 4], 1, 0.0, *(float("nan"),) * 4)
     timestep_ps = integrator.getStepSize().value_in_unit(unit.picoseconds)
     state = simulation.context.getState(getPositions=True, getVelocities=True)
-    position_error, velocity_error = constraint_errors(
+    position_error, velocity_error = system_constraint_errors(
         prepared.system,
         state.getPositions(asNumpy=True).value_in_unit(unit.nanometers),
         state.getVelocities(asNumpy=True).value_in_unit(unit.nanometers / unit.picoseconds),
@@ -400,9 +407,8 @@ def summarize(
     notes = []
     if not spec.velocity_verlet:
         notes.append(
-            "VerletIntegrator is leapfrog: its State kinetic energy is a half-step estimate, so its "
-            "H - E_ref is not comparable step for step with velocity-Verlet integrators; drift is. Its "
-            "velocities are half-step velocities, so the velocity-constraint error is not meaningful."
+            VERLET_IS_LEAPFROG + " Its velocities are half-step velocities, so the velocity-constraint "
+            "error is not meaningful."
         )
     momentum_change = {}
     if not prepared.system.usesPeriodicBoundaryConditions():  # isolated: P and L are invariants
@@ -439,34 +445,13 @@ def summarize(
     )
 
 
-def constraint_errors(system: mm.System, x: np.ndarray, v: np.ndarray) -> tuple[float, float]:
-    """Max relative bond-length error |r − d|/d and max |relative velocity along the bond| (nm/ps)."""
-    n = system.getNumConstraints()
-    if n == 0:
-        return 0.0, 0.0
-    pairs = np.empty((n, 2), dtype=int)
-    lengths = np.empty(n)
-    for k in range(n):
-        i, j, d = system.getConstraintParameters(k)
-        pairs[k] = i, j
-        lengths[k] = d.value_in_unit(unit.nanometers)
-    r = x[pairs[:, 1]] - x[pairs[:, 0]]
-    norm = np.linalg.norm(r, axis=1)
-    dv = v[pairs[:, 1]] - v[pairs[:, 0]]
-    return (
-        float(np.max(np.abs(norm - lengths) / lengths)),
-        float(np.max(np.abs(np.einsum("ij,ij->i", dv, r)) / norm)),
+def _state_momenta(system: mm.System, state: mm.State) -> tuple[np.ndarray, np.ndarray]:
+    """Linear and angular momentum of a State (see :func:`~openmm_alphaprk.observables.momenta`)."""
+    return momenta(
+        masses(system),
+        state.getPositions(asNumpy=True).value_in_unit(unit.nanometers),
+        state.getVelocities(asNumpy=True).value_in_unit(unit.nanometers / unit.picoseconds),
     )
-
-
-def _momenta(system: mm.System, state: mm.State) -> tuple[np.ndarray, np.ndarray]:
-    """Total linear (amu nm/ps) and angular momentum about the origin (amu nm²/ps)."""
-    m = np.array(
-        [system.getParticleMass(i).value_in_unit(unit.dalton) for i in range(system.getNumParticles())]
-    )
-    x = state.getPositions(asNumpy=True).value_in_unit(unit.nanometers)
-    v = state.getVelocities(asNumpy=True).value_in_unit(unit.nanometers / unit.picoseconds)
-    return (m[:, None] * v).sum(0), (m[:, None] * np.cross(x, v)).sum(0)
 
 
 def _momentum_change(prepared: PreparedSystem, final: mm.State, output: Path) -> dict:
@@ -481,8 +466,8 @@ def _momentum_change(prepared: PreparedSystem, final: mm.State, output: Path) ->
         if start_file.is_file()
         else prepared.state
     )
-    p0, l0 = _momenta(prepared.system, start)
-    p1, l1 = _momenta(prepared.system, final)
+    p0, l0 = _state_momenta(prepared.system, start)
+    p1, l1 = _state_momenta(prepared.system, final)
     return {
         "linear_amu_nm_per_ps": float(np.abs(p1 - p0).max()),
         "angular_amu_nm2_per_ps": float(np.abs(l1 - l0).max()),
@@ -505,9 +490,3 @@ def _platform(name: str, precision: str | None) -> tuple[mm.Platform, dict]:
             "some double accumulation); leave precision unset, or use CUDA/OpenCL."
         )
     return platform, {"Precision": precision}
-
-
-def _positive_int(value: object, name: str) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-        raise ValueError(f"{name} must be a positive integer, got {value!r}.")
-    return int(value)

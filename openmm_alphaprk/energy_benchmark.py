@@ -30,13 +30,13 @@ from tqdm import tqdm
 
 from .benchmark import (
     _context,
-    _total_energy,
     add_box_arguments,
     build_platform,
     interleaved_timing,
     platform_properties,
 )
 from .integrators import AlphaRattleIntegrator, RattleIntegrator
+from .observables import alpha_percentiles, degrees_of_freedom, drift_per_dof, total_energy
 from .systems import list_systems, prepare_system
 from .waterbox import WaterBox, build_water_box
 
@@ -94,21 +94,6 @@ def equal_cost_rattle(timestep: float, k: int) -> IntegratorSpec:
     return IntegratorSpec(lambda: RattleIntegrator(timestep / k), substeps=k)
 
 
-def degrees_of_freedom(system: mm.System) -> int:
-    """3 N − constraints − 3 if the system removes centre-of-mass motion (massive particles only)."""
-    massive = sum(
-        system.getParticleMass(i).value_in_unit(unit.dalton) > 0 for i in range(system.getNumParticles())
-    )
-    removes_cm = any(isinstance(system.getForce(i), mm.CMMotionRemover) for i in range(system.getNumForces()))
-    return 3 * massive - system.getNumConstraints() - (3 if removes_cm else 0)
-
-
-def drift_per_dof(times_ps: np.ndarray, residuals: np.ndarray, dof: int) -> float:
-    """Slope of a least-squares line through H(t), in kJ/mol/ns per degree of freedom."""
-    slope_per_ps = np.polyfit(times_ps, residuals, 1)[0]
-    return float(slope_per_ps * 1000.0 / dof)
-
-
 def _run_one(
     name: str,
     spec: IntegratorSpec,
@@ -123,7 +108,7 @@ def _run_one(
     integrator = spec.make()
     context = _context(box, integrator, plat, properties=properties)
     step_ps = integrator.getStepSize().value_in_unit(unit.picoseconds) * spec.substeps * every
-    e_ref = _total_energy(context)
+    e_ref = total_energy(context)
     residuals = np.full(samples, np.nan)
     alphas = np.full(samples, np.nan)
     blew_up = None
@@ -134,7 +119,7 @@ def _run_one(
         except Exception:  # a failed step is the blow-up we report, not a crash of the benchmark
             blew_up = i * every
             break
-        residuals[i] = _total_energy(context) - e_ref
+        residuals[i] = total_energy(context) - e_ref
         if energy_mode:
             alphas[i] = integrator.alpha
         if not np.isfinite(residuals[i]) or abs(residuals[i]) > BLOW_UP_ENERGY:
@@ -153,9 +138,7 @@ def _run_one(
     )
     if energy_mode:
         totals = integrator.controller_totals()
-        percentiles = (1, 5, 25, 50, 75, 95, 99)
-        values = np.nanpercentile(alphas, percentiles) if done.any() else [float("nan")] * len(percentiles)
-        row.alpha_percentiles = {f"p{p}": float(v) for p, v in zip(percentiles, values)}
+        row.alpha_percentiles = alpha_percentiles(alphas)
         row.fraction_within_tolerance = totals["fraction_within_tolerance"]
         row.fraction_fallen_back = totals["fraction_fallen_back"]
         row.fraction_at_bound = totals["steps_at_bound"] / max(totals["steps"], 1)
@@ -276,7 +259,7 @@ def largest_stable_step(
     for h_fs in sorted(steps_fs):
         integrator = make(h_fs / 1000.0)
         context = _context(box, integrator, plat, properties=properties)
-        e_ref = _total_energy(context)
+        e_ref = total_energy(context)
         n = int(round(time_ps / (h_fs / 1000.0)))
         worst, failure = 0.0, None
         for _ in range(n):
@@ -285,7 +268,7 @@ def largest_stable_step(
             except Exception as error:  # the failure is the measurement
                 failure = f"failed: {type(error).__name__}"
                 break
-            residual = _total_energy(context) - e_ref
+            residual = total_energy(context) - e_ref
             if not np.isfinite(residual) or abs(residual) > BLOW_UP_ENERGY:
                 failure = f"blew up (|H - E_ref| = {abs(residual):.3g} kJ/mol)"
                 break

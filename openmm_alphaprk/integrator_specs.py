@@ -34,6 +34,7 @@ import openmm as mm
 import openmm.unit as unit
 
 from .integrators import AlphaRattleIntegrator, RattleIntegrator
+from .observables import VERLET_IS_LEAPFROG
 from .platforms import COMMON_PLATFORMS, massless_particles
 
 INTEGRATOR_NAMES = ("rattle", "alpha=<number>", "energy", "alpha4=<number>", "energy4", "verlet")
@@ -45,8 +46,7 @@ INTEGRATOR_HELP = (
     "RATTLE); energy = AlphaRattleIntegrator(alpha='energy'), alpha chosen per step to hold H at E_ref "
     "(~7 force evaluations/step); alpha4=<number> = the same with order=4 (triple jump, alpha on the middle "
     "sub-step; alpha4=0 is 4th-order triple-jump RATTLE, 3 evaluations/step); energy4 = order=4 in the "
-    "energy mode (~6 evaluations/step); verlet = openmm.VerletIntegrator (leapfrog: its reported kinetic "
-    "energy is a half-step estimate, so its H - E_ref is not comparable step for step)"
+    "energy mode (~6 evaluations/step); verlet = " + VERLET_IS_LEAPFROG
 )
 
 

@@ -26,6 +26,7 @@ from .energy_mode import (
     _EnergyModeProgram,
     check_alpha_bounds,
 )
+from .observables import positive_int
 from .smooth_forces import warn_if_not_smooth
 from .step_program import (
     KIND_VARIABLE,
@@ -33,7 +34,6 @@ from .step_program import (
     _StepProgram,
     first_forces,
     last_forces,
-    positive_int,
 )
 
 __all__ = [

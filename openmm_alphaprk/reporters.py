@@ -13,6 +13,7 @@ import openmm.app as app
 import openmm.unit as unit
 
 from .integrators import AlphaRattleIntegrator, restore_integrator
+from .observables import alpha_percentiles
 
 #: Columns written by :class:`AlphaControllerReporter`, with their units.
 COLUMNS = (
@@ -175,10 +176,9 @@ def summarize_controller(rows: np.ndarray, energy_tolerance: float | None = None
         raise ValueError("No controller rows to summarize: run at least one step with the reporter attached.")
     alpha, residual = rows[:, 2], rows[:, 3]
     within = np.abs(residual) <= energy_tolerance if energy_tolerance is not None else rows[:, 7] == 0
-    percentiles = (1, 5, 25, 50, 75, 95, 99)
     return ControllerSummary(
         steps=int(rows.shape[0]),
-        alpha_percentiles={f"p{p}": float(v) for p, v in zip(percentiles, np.percentile(alpha, percentiles))},
+        alpha_percentiles=alpha_percentiles(alpha),
         rms_residual=float(np.sqrt(np.mean(residual**2))),
         max_abs_residual=float(np.max(np.abs(residual))),
         fraction_within_tolerance=float(np.mean(within)),

@@ -21,6 +21,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 import struct
 from pathlib import Path
 from typing import Any
@@ -151,3 +152,8 @@ def truncate_dcd(path: Path, n_frames: int) -> int:
         handle.seek(20)
         handle.write(struct.pack("<i", first_step + max(keep - 1, 0) * interval))
     return keep
+
+
+def folder_name(text: str) -> str:
+    """File-system-safe folder name: anything but letters, digits and ``.=+-`` becomes ``_``."""
+    return re.sub(r"[^A-Za-z0-9.=+-]", "_", text)

@@ -390,10 +390,3 @@ class _StepProgram(mm.CustomIntegrator):
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}(timestep={self.timestep})"
-
-
-def positive_int(value: object, name: str) -> int:
-    """Validate a positive integer argument (floats with integer values are accepted)."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or value != int(value) or value < 1:
-        raise ValueError(f"{name} must be a positive integer, got {value!r}.")
-    return int(value)

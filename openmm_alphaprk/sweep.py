@@ -49,7 +49,6 @@ import csv
 import json
 import math
 import os
-import re
 import sys
 import time
 import traceback
@@ -63,6 +62,8 @@ if sys.version_info >= (3, 11):
     import tomllib
 else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
+
+from . import rundir
 
 #: Name of the collected table in the sweep's output folder.
 TABLE_FILE = "sweep.csv"
@@ -129,7 +130,7 @@ class Cell:
         """Folder name of the cell's run directory (file-system safe, unique in a sweep)."""
         step = _format_fs(self.timestep_fs).replace("/", "_")
         seed = "start" if self.seed is None else f"seed{self.seed}"
-        integrator = re.sub(r"[^A-Za-z0-9.=+-]", "_", self.integrator.replace("/", "_"))
+        integrator = rundir.folder_name(self.integrator)
         return f"{self.system}__{integrator}__{step}fs__{seed}"
 
     def kwargs(self) -> dict[str, Any]:

@@ -7,6 +7,7 @@ import openmm as mm
 import openmm.unit as unit
 import pytest
 
+from openmm_alphaprk import observables
 from openmm_alphaprk.waterbox import build_water_box
 
 REFERENCE = mm.Platform.getPlatformByName("Reference")
@@ -38,19 +39,5 @@ def velocities_of(context) -> np.ndarray:
     return state.getVelocities(asNumpy=True).value_in_unit(unit.nanometers / unit.picoseconds)
 
 
-def total_energy(context) -> float:
-    state = context.getState(getEnergy=True)
-    return (state.getPotentialEnergy() + state.getKineticEnergy()).value_in_unit(unit.kilojoules_per_mole)
-
-
-def constraint_errors(system, x: np.ndarray, v: np.ndarray) -> tuple[float, float]:
-    """Max relative bond-length error and max |relative velocity along the bond| (nm/ps)."""
-    pos_err, vel_err = 0.0, 0.0
-    for k in range(system.getNumConstraints()):
-        i, j, d = system.getConstraintParameters(k)
-        d = d.value_in_unit(unit.nanometers)
-        r = x[j] - x[i]
-        norm = np.linalg.norm(r)
-        pos_err = max(pos_err, abs(norm - d) / d)
-        vel_err = max(vel_err, abs(np.dot(v[j] - v[i], r)) / norm)
-    return pos_err, vel_err
+total_energy = observables.total_energy
+constraint_errors = observables.system_constraint_errors

@@ -182,7 +182,7 @@ def test_velocities_file_and_seeded_start(cluster, tmp_path):
     """velocities.dcd holds the State's velocities in Å/ps; a seed draws new, constrained velocities."""
     import openmm as mm
 
-    from openmm_alphaprk.driver import constraint_errors
+    from openmm_alphaprk.observables import system_constraint_errors as constraint_errors
 
     run = dict(REFERENCE_RUN, steps=12, velocity_interval=4)
     first = run_nve(cluster, "rattle", tmp_path / "a", velocity_seed=3, **run)

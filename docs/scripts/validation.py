@@ -43,6 +43,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
+from openmm_alphaprk import observables
 from openmm_alphaprk.reference import (
     alpha_rattle4_step,
     alpha_rattle_step,
@@ -450,9 +451,7 @@ def openmm_alpha_star(workdir: Path, steps: int) -> dict:
             rows = read_controller_csv(outdir / "controller.csv")
             alphas = rows[:, 2]
             entry["alpha"] = _series(alphas)
-            entry["alpha_percentiles"] = {
-                f"p{p}": float(np.percentile(alphas, p)) for p in (1, 5, 25, 50, 75, 95, 99)
-            }
+            entry["alpha_percentiles"] = observables.alpha_percentiles(alphas)
             entry["median_abs_alpha"] = float(np.median(np.abs(alphas)))
             entry["max_abs_alpha"] = float(np.max(np.abs(alphas)))
             entry["controller"] = summary.controller
@@ -475,16 +474,8 @@ class InvariantReporter:
     """
 
     def __init__(self, system, start, interval: int) -> None:
-        import openmm.unit as unit
-
-        n = system.getNumParticles()
-        self.masses = np.array([system.getParticleMass(i).value_in_unit(unit.dalton) for i in range(n)])
-        pairs, lengths = [], []
-        for k in range(system.getNumConstraints()):
-            i, j, d = system.getConstraintParameters(k)
-            pairs.append((i, j))
-            lengths.append(d.value_in_unit(unit.nanometers))
-        self.pairs, self.lengths = np.array(pairs), np.array(lengths)
+        self.masses = observables.masses(system)
+        self.pairs, self.lengths = observables.system_constraints(system)
         self.interval = interval
         x, v = self._arrays(start)
         self.l0, self.p0 = self._momenta(x, v)
@@ -500,8 +491,8 @@ class InvariantReporter:
         )
 
     def _momenta(self, x: Array, v: Array) -> tuple[Array, Array]:
-        m = self.masses[:, None]
-        return (m * np.cross(x, v)).sum(0), (m * v).sum(0)
+        linear, angular = observables.momenta(self.masses, x, v)
+        return angular, linear
 
     def _scales(self, x: Array, v: Array) -> tuple[float, float]:
         """Σ m|x − x_cm||v| (amu nm²/ps) and Σ m|v| (amu nm/ps): what L and P are sums of."""
@@ -513,13 +504,7 @@ class InvariantReporter:
         )
 
     def _constraint_errors(self, x: Array, v: Array) -> tuple[float, float]:
-        r = x[self.pairs[:, 1]] - x[self.pairs[:, 0]]
-        norm = np.linalg.norm(r, axis=1)
-        dv = v[self.pairs[:, 1]] - v[self.pairs[:, 0]]
-        return (
-            float(np.max(np.abs(norm - self.lengths) / self.lengths)),
-            float(np.max(np.abs(np.einsum("ij,ij->i", dv, r)) / norm)),
-        )
+        return observables.constraint_errors(self.pairs, self.lengths, x, v)
 
     def describeNextReport(self, simulation) -> dict:
         """Positions, velocities and energy every ``interval`` steps."""

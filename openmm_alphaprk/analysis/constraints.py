@@ -4,21 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import openmm as mm
-import openmm.unit as unit
 from MDAnalysis.analysis.base import AnalysisBase
 from MDAnalysis.lib.distances import calc_bonds
 
-
-def system_constraints(system: mm.System) -> tuple[np.ndarray, np.ndarray]:
-    """Constrained pairs (k, 2) and their lengths (nm) from an OpenMM System."""
-    n = system.getNumConstraints()
-    pairs = np.empty((n, 2), dtype=np.intp)
-    lengths = np.empty(n)
-    for k in range(n):
-        i, j, d = system.getConstraintParameters(k)
-        pairs[k] = i, j
-        lengths[k] = d.value_in_unit(unit.nanometers)
-    return pairs, lengths
+from ..observables import system_constraints
 
 
 class ConstraintDeviation(AnalysisBase):

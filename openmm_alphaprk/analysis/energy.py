@@ -6,7 +6,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from ..energy_benchmark import drift_per_dof
+from ..observables import drift_per_dof
 
 
 @dataclass

@@ -12,7 +12,7 @@ import numpy as np
 import openmm as mm
 
 from .. import rundir
-from ..energy_benchmark import degrees_of_freedom
+from ..observables import degrees_of_freedom
 from ..reporters import read_controller_csv, summarize_controller
 from .constraints import ConstraintDeviation
 from .diffusion import Diffusion
