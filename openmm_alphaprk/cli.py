@@ -119,6 +119,24 @@ def _add_common(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
 
 
+def _add_bench_parser(sub) -> None:
+    bench = sub.add_parser(
+        "bench",
+        help="benchmarks against RATTLE: `bench cost` (time per step), `bench energy` (H - E_ref)",
+        description=(
+            "cost: time per step and per force evaluation of each integrator against RattleIntegrator, "
+            "interleaved rounds on one water box. energy: H - E_ref of the energy modes against RATTLE from "
+            "the same start, at the same step and at equal cost; --system tip3p-3nm villin runs the "
+            "package's systems in one run. `alphaprk bench cost --help` and `alphaprk bench energy --help` "
+            "list their options."
+        ),
+    )
+    bench.add_argument("benchmark", choices=BENCHMARKS, help="which benchmark")
+    bench.add_argument(
+        "options", nargs=argparse.REMAINDER, help="the benchmark's own options (see its --help)"
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     """Build the argument parser of ``alphaprk`` (all subcommands)."""
     parser = argparse.ArgumentParser(
@@ -131,7 +149,9 @@ def build_parser() -> argparse.ArgumentParser:
         ),
         epilog=f"Integrators: {INTEGRATOR_HELP}.",
     )
-    sub = parser.add_subparsers(dest="command", required=True, metavar="{systems,run,compare,analyze,sweep}")
+    sub = parser.add_subparsers(
+        dest="command", required=True, metavar="{systems,run,compare,analyze,sweep,bench}"
+    )
 
     systems = sub.add_parser(
         "systems",
@@ -238,6 +258,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sweep.add_argument("--retry-failed", action="store_true", help="run failed cells again")
     sweep.add_argument("--list", action="store_true", help="list the cells and their state, run nothing")
+    _add_bench_parser(sub)
     _add_common(sweep)
     return parser
 
@@ -381,12 +402,27 @@ def cmd_sweep(args) -> int:
     return 0  # failed cells are results (a step-size scan expects some); they are in the table
 
 
+#: ``alphaprk bench`` subcommands: the module whose ``main(argv)`` runs each.
+BENCHMARKS = {
+    "cost": "openmm_alphaprk.benchmarks.cost",
+    "energy": "openmm_alphaprk.benchmarks.energy_command",
+}
+
+
+def cmd_bench(args: argparse.Namespace) -> int:
+    """Run a benchmark's own command line with the remaining options."""
+    import importlib
+
+    return importlib.import_module(BENCHMARKS[args.benchmark]).main(args.options)
+
+
 _COMMANDS = {
     "systems": cmd_systems,
     "run": cmd_run,
     "compare": cmd_compare,
     "analyze": cmd_analyze,
     "sweep": cmd_sweep,
+    "bench": cmd_bench,
 }
 
 #: Errors that are the user's to fix: reported in one line, exit status 2.

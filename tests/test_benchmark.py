@@ -2,7 +2,7 @@
 
 import json
 
-from openmm_alphaprk.benchmark import main
+from openmm_alphaprk.benchmarks.cost import main
 
 
 def test_benchmark_command_prints_and_writes_the_table(tmp_path, capsys):

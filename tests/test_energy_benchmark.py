@@ -4,8 +4,9 @@ import json
 
 import pytest
 
-from openmm_alphaprk import energy_benchmark
-from openmm_alphaprk.energy_benchmark import EnergyRow, main, ratios_to_rattle
+from openmm_alphaprk.benchmarks import energy_command as energy_benchmark
+from openmm_alphaprk.benchmarks.energy import EnergyRow, ratios_to_rattle
+from openmm_alphaprk.benchmarks.energy_command import main
 
 
 def _row(name: str, rms: float, evals: float) -> EnergyRow:

@@ -2,7 +2,7 @@ r"""Plot H − E_ref against time from ``energy_benchmark --traces FILE.npz``.
 
 Run from the repository root::
 
-    python -m openmm_alphaprk.energy_benchmark --scan 2 3 4 5 --json docs/energy_benchmark.json \\
+    alphaprk bench energy --scan 2 3 4 5 --json docs/energy_benchmark.json \\
         --traces energy_traces.npz
     python docs/scripts/energy_benchmark_figure.py energy_traces.npz docs/figures/energy_benchmark.png
 """

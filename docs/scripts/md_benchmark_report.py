@@ -198,7 +198,7 @@ def timing_table(system: str, steps: int = 30, rounds: int = 3) -> dict[str, dic
     """
     import openmm as mm
 
-    from openmm_alphaprk.benchmark import interleaved_timing
+    from openmm_alphaprk.benchmarks.cost import interleaved_timing
     from openmm_alphaprk.integrator_specs import make_integrator
     from openmm_alphaprk.systems import prepare_system
 

@@ -5,7 +5,7 @@ and step; the timings are interleaved over several rounds and the median is take
 so the ratios to ``VerletIntegrator`` come from the same run on the same machine.
 A separate short pass records the RMS of H − E0 (every step) for each integrator.
 
-Run ``python -m openmm_alphaprk.benchmark --help`` for the options.
+The command is ``alphaprk bench cost``; ``--help`` lists its options.
 """
 
 from __future__ import annotations
@@ -21,10 +21,10 @@ from dataclasses import asdict, dataclass
 import numpy as np
 import openmm as mm
 
-from .integrators import AlphaRattleIntegrator, RattleIntegrator
-from .observables import total_energy
-from .step_program import _StepProgram
-from .waterbox import WaterBox, build_water_box
+from ..integrators import AlphaRattleIntegrator, RattleIntegrator
+from ..observables import total_energy
+from ..step_program import _StepProgram
+from ..waterbox import WaterBox, build_water_box
 
 
 @dataclass
@@ -264,7 +264,7 @@ def platform_properties(args: argparse.Namespace) -> dict[str, str]:
 def main(argv: Sequence[str] | None = None) -> int:
     """Command-line entry point."""
     parser = argparse.ArgumentParser(
-        prog="python -m openmm_alphaprk.benchmark",
+        prog="alphaprk bench cost",
         description="Time RATTLE and α-RATTLE against VerletIntegrator on a TIP3P water box (PME).",
     )
     add_box_arguments(parser)
