@@ -244,7 +244,7 @@ def apply_build_settings(
 ) -> None:
     """Give a System fresh from ``createSystem`` a builder's settings exactly, through make_smooth.
 
-    For :func:`openmm_alphaprk.waterbox.build_water_box` and the ``systems/``
+    For :func:`openmm_alphaprk.systems.build_water_box` and the ``systems/``
     definitions, the same System ``createSystem(switchDistance=..., ewaldErrorTolerance=...)``
     gives: the LJ switch from ``switch_distance`` (nm; None: no switch), and the Ewald
     tolerance ``ewald_error_tolerance`` (None: OpenMM's default) even where it is

@@ -8,7 +8,7 @@ import openmm.unit as unit
 import pytest
 
 from openmm_alphaprk import observables
-from openmm_alphaprk.waterbox import build_water_box
+from openmm_alphaprk.systems import build_water_box
 
 REFERENCE = mm.Platform.getPlatformByName("Reference")
 

@@ -22,7 +22,7 @@ from openmm_alphaprk import (
     MasslessParticleError,
     RattleIntegrator,
 )
-from openmm_alphaprk.waterbox import build_water_box
+from openmm_alphaprk.systems import build_water_box
 
 H = 0.002
 INTEGRATORS = {

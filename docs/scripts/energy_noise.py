@@ -20,7 +20,7 @@ import openmm as mm
 import openmm.unit as unit
 
 from openmm_alphaprk.platforms import default_energy_tolerance, energy_noise
-from openmm_alphaprk.waterbox import build_water_box
+from openmm_alphaprk.systems import build_water_box
 
 
 def _platform(spec: str) -> tuple[mm.Platform, dict[str, str]]:

@@ -24,7 +24,7 @@ import openmm as mm
 from ..integrators import AlphaRattleIntegrator, RattleIntegrator
 from ..observables import total_energy
 from ..step_program import _StepProgram
-from ..waterbox import WaterBox, build_water_box
+from ..systems import PreparedSystem, build_water_box
 
 
 @dataclass
@@ -71,7 +71,7 @@ INTEGRATOR_SETS = {"core": default_integrators, "all": all_integrators}
 
 
 def _context(
-    box: WaterBox,
+    box: PreparedSystem,
     integrator: mm.Integrator,
     platform: mm.Platform,
     tolerance: float | None = None,
@@ -111,7 +111,7 @@ def interleaved_timing(
 
 
 def run_benchmark(
-    box: WaterBox,
+    box: PreparedSystem,
     integrators: dict[str, Callable[[], mm.Integrator]],
     *,
     platform: str = "CPU",

@@ -28,7 +28,7 @@ from tqdm import tqdm
 
 from ..integrators import AlphaRattleIntegrator, RattleIntegrator
 from ..observables import alpha_percentiles, degrees_of_freedom, drift_per_dof, total_energy
-from ..waterbox import WaterBox
+from ..systems import PreparedSystem
 from .cost import (
     _context,
     interleaved_timing,
@@ -91,7 +91,7 @@ def equal_cost_rattle(timestep: float, k: int) -> IntegratorSpec:
 def _run_one(
     name: str,
     spec: IntegratorSpec,
-    box: WaterBox,
+    box: PreparedSystem,
     plat: mm.Platform,
     samples: int,
     dof: int,
@@ -149,7 +149,7 @@ BLOW_UP_ENERGY = 1e4
 
 
 def run_energy_benchmark(
-    box: WaterBox,
+    box: PreparedSystem,
     integrators: dict[str, IntegratorSpec],
     *,
     platform: str = "CPU",
@@ -227,7 +227,7 @@ def run_energy_benchmark(
 
 
 def largest_stable_step(
-    box: WaterBox,
+    box: PreparedSystem,
     make: Callable[[float], mm.Integrator],
     steps_fs: Sequence[float],
     *,

@@ -15,8 +15,7 @@ import numpy as np
 
 from ..integrators import AlphaRattleIntegrator, RattleIntegrator
 from ..observables import degrees_of_freedom
-from ..systems import list_systems, prepare_system
-from ..waterbox import WaterBox, build_water_box
+from ..systems import PreparedSystem, build_water_box, list_systems, prepare_system
 from .cost import add_box_arguments, build_platform, platform_properties
 from .energy import (
     EQUAL_COST_REFERENCE,
@@ -139,7 +138,7 @@ def _check_arguments(parser: argparse.ArgumentParser, args: argparse.Namespace) 
             parser.error(f"unknown system(s) {unknown}; choose from {', '.join(list_systems())}")
 
 
-def _benchmark_starts(args: argparse.Namespace) -> list[tuple[WaterBox, str]]:
+def _benchmark_starts(args: argparse.Namespace) -> list[tuple[PreparedSystem, str]]:
     """Build or load the start states, each with the first part of its table header."""
     if not args.system:
         print(f"building a {args.box} nm TIP3P box ...", file=sys.stderr, flush=True)
@@ -160,20 +159,15 @@ def _benchmark_starts(args: argparse.Namespace) -> list[tuple[WaterBox, str]]:
     starts = []
     for name in args.system:
         prepared = prepare_system(name, progress=True)
-        system = prepared.system
-        system.setDefaultPeriodicBoxVectors(*prepared.state.getPeriodicBoxVectors())
-        box = WaterBox(prepared.topology, system, prepared.positions, prepared.velocities)
-        starts.append(
-            (
-                box,
-                f"system {name} ({prepared.definition.description or 'see alphaprk systems'}), "
-                f"{box.n_atoms} atoms, {degrees_of_freedom(system)} DOF",
-            )
-        )
+        # the contexts take the box from the System: make it the equilibrated state's
+        prepared.system.setDefaultPeriodicBoxVectors(*prepared.state.getPeriodicBoxVectors())
+        description = prepared.definition.description or "see alphaprk systems"
+        dof = degrees_of_freedom(prepared.system)
+        starts.append((prepared, f"system {name} ({description}), {prepared.n_atoms} atoms, {dof} DOF"))
     return starts
 
 
-def _scan(box: WaterBox, integrators: dict, args: argparse.Namespace) -> dict:
+def _scan(box: PreparedSystem, integrators: dict, args: argparse.Namespace) -> dict:
     makers = {
         "RATTLE": lambda h: RattleIntegrator(h),
         "α-RATTLE energy": lambda h: AlphaRattleIntegrator(h, alpha="energy"),
@@ -194,7 +188,7 @@ def _scan(box: WaterBox, integrators: dict, args: argparse.Namespace) -> dict:
     return scan
 
 
-def _benchmark_one(box: WaterBox, description: str, args: argparse.Namespace) -> tuple[dict, dict]:
+def _benchmark_one(box: PreparedSystem, description: str, args: argparse.Namespace) -> tuple[dict, dict]:
     """Run the rows on one start state, print the table; return the JSON result and the traces."""
     timestep = args.timestep / 1000.0
     integrators = default_integrators(timestep)

@@ -8,6 +8,7 @@ from .definitions import (
     list_systems,
     load_definition,
 )
+from .water_box import build_water_box
 
 __all__ = [
     "CACHE_ENV",
@@ -15,6 +16,7 @@ __all__ = [
     "PreparedSystem",
     "SystemDefinition",
     "UnknownSystemError",
+    "build_water_box",
     "default_cache_dir",
     "is_cached",
     "list_systems",

@@ -53,7 +53,7 @@ def create_system(definition: SystemDefinition, topology: app.Topology, forcefie
     system = forcefield.createSystem(
         topology, nonbondedMethod=app.PME, nonbondedCutoff=cutoff * unit.nanometers, **kwargs
     )
-    # smooth forces at the cutoff (make_smooth; see waterbox.build_water_box): otherwise
+    # smooth forces at the cutoff (make_smooth; see systems.water_box): otherwise
     # the energy error of any integrator is dominated by pairs crossing the cutoff
     switch, ewald = build.get("switch_distance_nm"), build.get("ewald_error_tolerance")
     apply_build_settings(

@@ -1,30 +1,19 @@
-"""Small rigid-water boxes built with OpenMM's own ForceField and Modeller."""
+"""Water boxes of any size, built by the same builder as the named systems (not cached).
+
+:func:`build_water_box` turns its arguments into a ``water_box`` definition and runs
+it through :func:`~openmm_alphaprk.systems.prepare_system` without the cache: the
+boxes of the tests and benchmarks and the named boxes (``tip3p-3nm`` …) come from one
+builder, ForceField + Modeller, :func:`~openmm_alphaprk.make_smooth`'s settings and
+the same minimization and Langevin protocol.
+"""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
-import numpy as np
-import openmm as mm
-import openmm.app as app
 import openmm.unit as unit
 
-from ._units import to_float
-from .smooth_forces import apply_build_settings
-
-
-@dataclass
-class WaterBox:
-    """A water box: topology, system and an equilibrated (consistent) state."""
-
-    topology: app.Topology
-    system: mm.System
-    positions: np.ndarray  # nm, (N, 3)
-    velocities: np.ndarray  # nm/ps, (N, 3)
-
-    @property
-    def n_atoms(self) -> int:
-        return self.system.getNumParticles()
+from .._units import to_float
+from .cache import PreparedSystem, prepare_system
+from .definitions import parse_definition
 
 
 def build_water_box(
@@ -38,7 +27,7 @@ def build_water_box(
     equilibration_steps: int = 500,
     seed: int = 2024,
     platform: str = "CPU",
-) -> WaterBox:
+) -> PreparedSystem:
     """Build, minimize and briefly equilibrate a cubic box of rigid water with PME.
 
     Parameters
@@ -54,11 +43,10 @@ def build_water_box(
         default) is cutoff − 0.1 nm, ``None`` switches it off (plain truncation).
     ewald_error_tolerance
         PME's ``setEwaldErrorTolerance`` (default 1e-5; OpenMM's default is 5e-4).
-
     temperature
         Langevin equilibration temperature (K).
     equilibration_steps
-        2 fs Langevin steps after minimization.
+        2 fs Langevin steps after minimization (friction 5/ps).
     seed
         Seed of the velocity initialisation and the Langevin thermostat.
     platform
@@ -66,9 +54,10 @@ def build_water_box(
 
     Returns
     -------
-    WaterBox
+    PreparedSystem
         With ``removeCMMotion=False`` (NVE bookkeeping), constrained positions and
-        velocities satisfying the velocity constraints.
+        velocities satisfying the velocity constraints (``.positions`` in nm and
+        ``.velocities`` in nm/ps as arrays).
 
     Notes
     -----
@@ -80,50 +69,51 @@ def build_water_box(
     and 1e-5 it is 0.71 at 2 fs and 0.085 at 0.67 fs, the h² scaling of the
     integrator (1e-6 scales as well, but costs 3.2× a 5e-4 force evaluation on the
     CPU platform for a 3 nm box, 1e-5 1.3×).
-
     """
     edge = to_float(box_size, unit.nanometers, "box_size", positive=True)
     rc = to_float(cutoff, unit.nanometers, "cutoff", positive=True)
     kelvin = to_float(temperature, unit.kelvin, "temperature", positive=True)
     if rc >= edge / 2:
         raise ValueError(f"cutoff {rc} nm must be below half the box edge ({edge / 2} nm); use a larger box.")
+    switch = _switch_distance(switch_distance, rc)
+    build = {
+        "kind": "water_box",
+        "forcefield": [f"{model}.xml"],
+        "water_model": model,
+        "box_edge_nm": edge,
+        "nonbonded_method": "PME",
+        "cutoff_nm": rc,
+        "ewald_error_tolerance": to_float(
+            ewald_error_tolerance, unit.dimensionless, "ewald_error_tolerance", positive=True
+        ),
+        "constraints": "HBonds",
+    }
+    if switch is not None:
+        build["switch_distance_nm"] = switch
+    equilibration = {
+        "seed": int(seed),
+        "temperature_K": kelvin,
+        "minimize_tolerance_kJ_per_mol_nm": 10.0,
+        "minimize_max_iterations": 500,
+        "langevin_steps": int(equilibration_steps),
+        "langevin_timestep_fs": 2.0,
+        "langevin_friction_per_ps": 5.0,
+        "platform": platform,
+    }
+    name = f"{model}-box-{edge:g}nm"
+    definition = parse_definition({"build": build, "equilibration": equilibration}, name)
+    return prepare_system(definition, use_cache=False)
+
+
+def _switch_distance(switch_distance: object, cutoff: float) -> float | None:
+    """Return the LJ switch distance (nm) for ``"auto"`` (cutoff − 0.1 nm), a length, or None."""
     if isinstance(switch_distance, str):
         if switch_distance != "auto":
             raise ValueError(f"switch_distance must be a length, None or 'auto', got {switch_distance!r}.")
-        switch = max(rc - 0.1, 0.5 * rc)
-    else:
-        switch = (
-            None if switch_distance is None else to_float(switch_distance, unit.nanometers, "switch_distance")
-        )
-    if switch is not None and not 0 < switch < rc:
-        raise ValueError(f"switch_distance {switch} nm must lie between 0 and the cutoff ({rc} nm).")
-    ewald = to_float(ewald_error_tolerance, unit.dimensionless, "ewald_error_tolerance", positive=True)
-    forcefield = app.ForceField(f"{model}.xml")
-    modeller = app.Modeller(app.Topology(), [])
-    modeller.addSolvent(forcefield, model=model, boxSize=mm.Vec3(edge, edge, edge) * unit.nanometers)
-    system = forcefield.createSystem(
-        modeller.topology,
-        nonbondedMethod=app.PME,
-        nonbondedCutoff=rc * unit.nanometers,
-        constraints=app.HBonds,
-        rigidWater=True,
-        removeCMMotion=False,
-    )
-    apply_build_settings(system, rc, switch, ewald)  # make_smooth, with these settings exactly
-    integrator = mm.LangevinMiddleIntegrator(kelvin, 5.0, 0.002)
-    integrator.setRandomNumberSeed(seed)
-    integrator.setConstraintTolerance(1e-10)
-    context = mm.Context(system, integrator, mm.Platform.getPlatformByName(platform))
-    context.setPositions(modeller.positions)
-    mm.LocalEnergyMinimizer.minimize(context, 10.0, 500)
-    context.setVelocitiesToTemperature(kelvin, seed)
-    integrator.step(int(equilibration_steps))
-    context.applyConstraints(1e-12)
-    context.applyVelocityConstraints(1e-12)
-    state = context.getState(getPositions=True, getVelocities=True)
-    return WaterBox(
-        topology=modeller.topology,
-        system=system,
-        positions=state.getPositions(asNumpy=True).value_in_unit(unit.nanometers),
-        velocities=state.getVelocities(asNumpy=True).value_in_unit(unit.nanometers / unit.picoseconds),
-    )
+        return max(cutoff - 0.1, 0.5 * cutoff)
+    if switch_distance is None:
+        return None
+    switch = to_float(switch_distance, unit.nanometers, "switch_distance")
+    if not 0 < switch < cutoff:
+        raise ValueError(f"switch_distance {switch} nm must lie between 0 and the cutoff ({cutoff} nm).")
+    return switch
