@@ -50,15 +50,12 @@ def plot_xy(
     xlabel: str,
     ylabel: str,
     title: str = "",
-    logy: bool = False,
 ) -> str:
     """Plot one or more series against ``x``; returns the path."""
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(6, 4), constrained_layout=True)
     for label, y in ys.items():
         ax.plot(x, y, label=label, lw=1.0)
-    if logy:
-        ax.set_yscale("log")
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     ax.set_title(title, fontsize=9)

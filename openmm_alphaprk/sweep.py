@@ -566,19 +566,3 @@ def _prepare_systems(names: set[str], cache_dir: str | None, progress: bool) -> 
 
     for name in sorted(names):
         prepare_system(name, cache_dir=cache_dir, progress=progress)
-
-
-def describe(config: SweepConfig) -> list[dict[str, Any]]:
-    """Return the cells of a configuration as dicts."""
-    return [
-        {
-            "cell": cell.name,
-            "system": cell.system,
-            "integrator": cell.integrator,
-            "timestep_fs": _format_fs(cell.timestep_fs),
-            "seed": cell.seed,
-            "steps": cell.steps,
-            "run": cell.kwargs(),
-        }
-        for cell in config.cells
-    ]

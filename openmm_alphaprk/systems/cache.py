@@ -67,13 +67,6 @@ class PreparedSystem:
         """Start velocities (nm/ps), shape (N, 3)."""
         return self.state.getVelocities(asNumpy=True).value_in_unit(unit.nanometers / unit.picoseconds)
 
-    @property
-    def has_massless_particles(self) -> bool:
-        """True if any particle has zero mass (virtual sites such as TIP4P-Ew's M-site)."""
-        return any(
-            self.system.getParticleMass(i).value_in_unit(unit.dalton) == 0 for i in range(self.n_atoms)
-        )
-
 
 def default_cache_dir() -> Path:
     """Return the cache root.
