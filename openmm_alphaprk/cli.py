@@ -13,7 +13,7 @@ import openmm as mm
 
 from . import rundir
 from .compare import DEFAULT_INTEGRATORS, DEFAULT_SYSTEM, VERLET_NOTE, run_directory_name
-from .integrator_specs import (
+from .integrators.names import (
     INTEGRATOR_HELP,
     IncompatibleSystemError,
     UnknownIntegratorError,

@@ -13,7 +13,7 @@ import openmm.unit as unit
 from . import rundir
 from ._units import to_float
 from .driver import RunSummary, run_nve, run_parameters
-from .integrator_specs import IntegratorSpec, check_compatible, parse_integrator
+from .integrators.names import IntegratorSpec, check_compatible, parse_integrator
 from .observables import VERLET_IS_LEAPFROG
 from .systems import PreparedSystem, load_definition, prepare_system
 

@@ -26,7 +26,8 @@ from tqdm import tqdm
 from . import rundir
 from ._units import to_dimensionless, to_float
 from .analysis.energy import EnergyDrift, energy_drift
-from .integrator_specs import IntegratorSpec, check_compatible, make_integrator, parse_integrator
+from .integrators import StepProgram
+from .integrators.names import IntegratorSpec, check_compatible, make_integrator, parse_integrator
 from .observables import (
     VERLET_IS_LEAPFROG,
     degrees_of_freedom,
@@ -41,7 +42,6 @@ from .reporters import (
     read_controller_csv,
     summarize_controller,
 )
-from .step_program import _StepProgram
 from .systems import PreparedSystem, prepare_system
 
 PRECISIONS = ("single", "mixed", "double")
@@ -148,7 +148,7 @@ def run_nve(
         A system name (``alphaprk systems``) or a :class:`~openmm_alphaprk.systems.PreparedSystem`.
     integrator
         ``rattle``, ``verlet``, ``energy`` or ``alpha=<number>``; see
-        :mod:`openmm_alphaprk.integrator_specs`.
+        :mod:`openmm_alphaprk.integrators.names`.
     output
         Run directory; created if missing. If it holds this run (same settings except
         ``steps``), the run resumes from its last checkpoint, or is extended to ``steps``.
@@ -416,7 +416,7 @@ def summarize(
     controller = {}
     if spec.kind == "energy":
         controller = summarize_controller(read_controller_csv(output / rundir.CONTROLLER_FILE)).as_dict()
-    evaluations = integrator.force_evaluations_per_step if isinstance(integrator, _StepProgram) else 1.0
+    evaluations = integrator.force_evaluations_per_step if isinstance(integrator, StepProgram) else 1.0
     simulated_ns = steps_this_call * timestep_ps / 1000.0
     return RunSummary(
         system=prepared.name,

@@ -13,6 +13,16 @@ import openmm.app as app
 import openmm.unit as unit
 
 from .integrators import AlphaRattleIntegrator, restore_integrator
+from .integrators.controller import (
+    ALPHA,
+    ALPHA_AT_BOUND,
+    FELL_BACK,
+    MIDPOINT_CHANGE,
+    REFERENCE_ENERGY,
+    RESIDUAL,
+    STEP_FORCE_EVALUATIONS,
+    TRIALS,
+)
 from .observables import alpha_percentiles
 
 #: Columns written by :class:`AlphaControllerReporter`, with their units.
@@ -89,14 +99,14 @@ class AlphaControllerReporter:
             state.getTime()._value
             if state is not None
             else simulation.currentStep * integrator.getStepSize()._value,
-            get("alpha"),
-            get("residual"),
-            get("reference_energy"),
-            int(get("trials")),
-            int(get("step_force_evaluations")),
-            int(get("fell_back")),
-            int(get("alpha_at_bound")),
-            get("midpoint_change"),
+            get(ALPHA),
+            get(RESIDUAL),
+            get(REFERENCE_ENERGY),
+            int(get(TRIALS)),
+            int(get(STEP_FORCE_EVALUATIONS)),
+            int(get(FELL_BACK)),
+            int(get(ALPHA_AT_BOUND)),
+            get(MIDPOINT_CHANGE),
         )
         self.rows.append(row)
         self._writer.writerow(row)

@@ -39,7 +39,7 @@ Configuration::
     duration_ps = 2.0               # optional: any [run] key, for this grid only
 
 Times (duration, intervals) become the nearest whole number of steps of each step size,
-at least one. Integrator names are those of :mod:`openmm_alphaprk.integrator_specs`; an integrator
+at least one. Integrator names are those of :mod:`openmm_alphaprk.integrators.names`; an integrator
 name containing ``{alpha}`` is expanded over ``alphas``, the others are not.
 """
 
@@ -230,7 +230,7 @@ def _table(data: dict, name: str, allowed: set[str], source: str) -> dict[str, A
 
 
 def _expand_grid(grid: dict[str, Any], run: dict[str, Any], where: str) -> Iterable[Cell]:
-    from .integrator_specs import parse_integrator
+    from .integrators.names import parse_integrator
     from .systems import load_definition
 
     if not isinstance(grid, dict):

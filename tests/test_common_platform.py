@@ -254,7 +254,7 @@ def test_driver_runs_tip4pew_where_it_can_be_right_and_refuses_the_rest(spec, tm
     from quick_systems import quick_system
 
     from openmm_alphaprk.driver import run_nve
-    from openmm_alphaprk.integrator_specs import IncompatibleSystemError
+    from openmm_alphaprk.integrators.names import IncompatibleSystemError
 
     platform_and_properties(spec)  # skip (or fail) without the platform
     name, _, precision = spec.partition(":")

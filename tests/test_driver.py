@@ -13,7 +13,7 @@ from quick_systems import StopAt, quick_system
 from openmm_alphaprk import rundir
 from openmm_alphaprk.compare import compare
 from openmm_alphaprk.driver import RunFailedError, run_nve
-from openmm_alphaprk.integrator_specs import UnknownIntegratorError, make_integrator, parse_integrator
+from openmm_alphaprk.integrators.names import UnknownIntegratorError, make_integrator, parse_integrator
 from openmm_alphaprk.rundir import RunDirectoryError
 from openmm_alphaprk.systems import UnknownSystemError
 

@@ -10,7 +10,7 @@ import pytest
 from quick_systems import QUICK, quick_system
 
 from openmm_alphaprk.driver import run_nve
-from openmm_alphaprk.integrator_specs import IncompatibleSystemError
+from openmm_alphaprk.integrators.names import IncompatibleSystemError
 from openmm_alphaprk.systems import (
     DefinitionError,
     UnknownSystemError,

@@ -21,9 +21,8 @@ from dataclasses import asdict, dataclass
 import numpy as np
 import openmm as mm
 
-from ..integrators import AlphaRattleIntegrator, RattleIntegrator
+from ..integrators import AlphaRattleIntegrator, RattleIntegrator, StepProgram
 from ..observables import total_energy
-from ..step_program import _StepProgram
 from ..systems import PreparedSystem, build_water_box
 
 
@@ -196,14 +195,14 @@ def run_benchmark(
 
 def _force_evaluations(integrator: mm.Integrator) -> int | None:
     """Force evaluations counted by this package's integrators; None for others (one per step)."""
-    if isinstance(integrator, _StepProgram):
+    if isinstance(integrator, StepProgram):
         return integrator.force_evaluations
     return None
 
 
 def _host_syncs(integrator: mm.Integrator) -> float:
     """Return the sums over degrees of freedom counted by our integrators (0 for others)."""
-    if isinstance(integrator, _StepProgram):
+    if isinstance(integrator, StepProgram):
         return integrator.getGlobalVariableByName("host_syncs")
     return 0.0
 

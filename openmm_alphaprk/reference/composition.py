@@ -12,7 +12,7 @@ from collections.abc import Callable
 import numpy as np
 from scipy.optimize import brentq
 
-from .._triple_jump import GAMMA1, GAMMA2
+from ..integrators.triple_jump import GAMMA1, GAMMA2
 from .step import Array, ConstrainedProblem, alpha_rattle_step
 
 Step = Callable[..., tuple[Array, Array, Array]]

@@ -1,9 +1,12 @@
-"""The pieces every step program of this package is built from, and the rule they obey.
+"""The base of every step program of this package, its RATTLE pieces, and the rules all pieces obey.
 
 A step is velocity Verlet with SHAKE/SETTLE positions and RATTLE velocities, or the
 α-RATTLE step (design doc §3) whose implicit midpoint force is found by fixed-point
 iteration. Each piece is an ``_add_*`` method that appends computations to the
-``CustomIntegrator``; :meth:`_StepProgram.program_listing` prints the result.
+``CustomIntegrator``: the RATTLE pieces are here, on :class:`StepProgram`; the
+midpoint and triple-jump pieces on :class:`~.midpoint.MidpointProgram`, the α*
+controller's on :class:`~.controller.EnergyControllerProgram`.
+:meth:`StepProgram.program_listing` prints the result.
 
 **One program, two semantics** (see :mod:`openmm_alphaprk.platforms`). The pieces
 are ordered so that Reference/CPU and the common platform (CUDA, OpenCL, HIP) take
@@ -34,27 +37,16 @@ from typing import ClassVar
 import openmm as mm
 import openmm.unit as unit
 
-from . import platforms, start_blowup
-from ._triple_jump import GAMMA1, GAMMA2
-from ._units import to_dimensionless, to_float
-
-#: Sub-step sizes of α-RATTLE-4: Ψ^0_{γ1 h} ∘ Ψ^α_{γ2 h} ∘ Ψ^0_{γ1 h} (design doc §8).
-OUTER_H = f"({GAMMA1!r}*dt)"
-MIDDLE_H = f"({GAMMA2!r}*dt)"
-
-
-def first_forces(alpha: str) -> str:
-    """Force term of the position solve: (½−α) F(x0) + α F(x_m)."""
-    return f"(0.5-{alpha})*fstart + {alpha}*fmid"
-
-
-def last_forces(alpha: str) -> str:
-    """Force term of the velocity update: α F(x_m) + (½−α) F(x1)."""
-    return f"{alpha}*fmid + (0.5-{alpha})*f"
-
+from .. import platforms, start_blowup
+from .._units import to_dimensionless, to_float
 
 #: Name of the global variable that identifies the integrator class in serialized form.
 KIND_VARIABLE = "alphaprk_kind"
+#: Names of global variables read by name from outside the program.
+STEPS_TAKEN = "steps_taken"
+FORCE_EVALUATIONS = "force_evaluations"
+STEP_FORCE_EVALUATIONS = "step_force_evaluations"
+HOST_SYNCS = "host_syncs"
 
 _STEP_TYPES = {
     mm.CustomIntegrator.ComputeGlobal: "global",
@@ -73,8 +65,8 @@ class MasslessParticleError(RuntimeError):
     """Raised when a step program cannot be right for a system with massless particles."""
 
 
-class _StepProgram(mm.CustomIntegrator):
-    """Common state, sub-step pieces, platform checks and reporting of this package's integrators.
+class StepProgram(mm.CustomIntegrator):
+    """Common state, RATTLE pieces, platform checks and reporting of this package's integrators.
 
     Subclasses set ``_kind`` (stored in the global variable :data:`KIND_VARIABLE` so
     that ``restore_integrator`` can recognise a deserialized integrator) and build
@@ -82,8 +74,6 @@ class _StepProgram(mm.CustomIntegrator):
     """
 
     _kind: ClassVar[int] = 0
-    #: Whether the program has the α-RATTLE midpoint iteration (and its failure count).
-    _has_midpoint: ClassVar[bool] = False
 
     def __init__(self, timestep: unit.Quantity | float, constraint_tolerance: float) -> None:
         step_size = to_float(timestep, unit.picoseconds, "timestep", positive=True)
@@ -91,10 +81,10 @@ class _StepProgram(mm.CustomIntegrator):
         super().__init__(step_size)
         self.setConstraintTolerance(tolerance)
         self.addGlobalVariable(KIND_VARIABLE, self._kind)
-        self.addGlobalVariable("force_evaluations", 0)
-        self.addGlobalVariable("steps_taken", 0)
-        self.addGlobalVariable("step_force_evaluations", 0)
-        self.addGlobalVariable("host_syncs", 0)
+        self.addGlobalVariable(FORCE_EVALUATIONS, 0)
+        self.addGlobalVariable(STEPS_TAKEN, 0)
+        self.addGlobalVariable(STEP_FORCE_EVALUATIONS, 0)
+        self.addGlobalVariable(HOST_SYNCS, 0)
         for name in ("x0", "v0", "massive"):
             self.addPerDofVariable(name, 0)
 
@@ -145,112 +135,9 @@ class _StepProgram(mm.CustomIntegrator):
         self.addComputeGlobal("step_force_evaluations", "step_force_evaluations + 1")
 
     def _add_end_step(self) -> None:
-        if self._has_midpoint:
-            self.addComputeGlobal("midpoint_failures", "midpoint_failures + midpoint_failed")
+        """Add the step's force evaluations to the totals and count the step."""
         self.addComputeGlobal("force_evaluations", "force_evaluations + step_force_evaluations")
         self.addComputeGlobal("steps_taken", "steps_taken + 1")
-
-    # ------------------------------------------------------ α-RATTLE's midpoint
-    def _add_midpoint_setup(self, need_midpoint: str) -> None:
-        """Reset the midpoint iteration; ``need_midpoint``: whether the first solve is a predictor."""
-        for name, expression in (
-            ("midpoint_iterations", "0"),
-            ("midpoint_change", "0"),
-            ("previous_midpoint_change", "1e30"),
-            ("midpoint_failed", "0"),
-            ("need_midpoint", need_midpoint),
-        ):
-            self.addComputeGlobal(name, expression)
-
-    def _add_midpoint_force(self, h: str, alpha: str, iterate: bool = True) -> None:
-        """Take F(x_m), x_m = (x0 + x1)/2 with x1 the last solve; decide whether to solve again.
-
-        One force evaluation.
-
-        The body of the last block of a loop (rule 1 of the module docstring). Leaves
-        x = x0, ``fmid`` = F(x_m), ``midpoint_change`` = RMS change per degree of
-        freedom that the new force makes to the next position solve (h²|α ΔF|/m before
-        projection), and ``need_midpoint`` = 0 once that change is below
-        ``midpoint_tolerance``, stops decreasing (the round-off floor, or divergence)
-        or the iteration cap is reached; ``midpoint_failed`` = 1 if it then exceeds
-        max(1000 × tolerance, 1e-8 nm) or is not finite.
-
-        With ``iterate`` false (the energy mode, whose controller converges the
-        midpoint along with α) one pass only, ``need_midpoint`` = 0; and when the
-        global ``restarting`` is set (a new trial of α), x1 is first solved again
-        from x0 with the new α and the previous midpoint force.
-        """
-        self.addComputePerDof("x1", "x")
-        self.addComputePerDof("x", "x0")
-        self.addConstrainPositions()
-        if not iterate:
-            self.addComputePerDof(
-                "x", f"select(restarting, x0 + {h}*v0 + {h}*{h}*({first_forces(alpha)})/m, x0)"
-            )
-            self.addConstrainPositions()
-            self.addComputePerDof("x1", "select(restarting, x, x1)")
-            self.addComputeGlobal("restarting", "0")
-            self.addComputePerDof("x", "x0")  # the reference of the next solve again (Reference/CPU)
-            self.addConstrainPositions()
-        self.addComputePerDof("x", "0.5*(x0 + x1)")
-        self._add_sum("sum_change2", f"({h}*{h}*{alpha}*(f - fmid)/m)^2")
-        self.addComputePerDof("fmid", "f")
-        self.addComputePerDof("x", "x0")
-        self._add_count_force_evaluation()
-        self.addComputeGlobal("midpoint_iterations", "midpoint_iterations + 1")
-        self.addComputeGlobal("midpoint_change", "sqrt(sum_change2/max(ndof, 1))")
-        if not iterate:
-            self.addComputeGlobal("need_midpoint", "0")
-            return
-        self.addComputeGlobal(
-            "need_midpoint",
-            "step(max_midpoint_iterations - midpoint_iterations - 0.5)"
-            "*step(midpoint_change - midpoint_tolerance)"
-            "*(1 - step(midpoint_change - previous_midpoint_change))",
-        )
-        self.addComputeGlobal(
-            "midpoint_failed",
-            "max(midpoint_failed, (1 - need_midpoint)*(1 - step(accepted - midpoint_change)));"
-            "accepted = max(1000*midpoint_tolerance, 1e-8)",
-        )
-        self.addComputeGlobal("previous_midpoint_change", "midpoint_change")
-
-    # ------------------------------------------- α-RATTLE-4's inner sub-steps
-    def _add_first_outer_substep(self) -> None:
-        """Take the first RATTLE sub-step (γ1 h) from the step's start, F(x0) saved as ``fstart``."""
-        self._add_position_solve("0.5*fstart", OUTER_H)
-        self._add_velocity_update("0.5*f", OUTER_H)
-
-    def _add_inner_substeps_start(self, need_midpoint: str, **copies: str) -> None:
-        """Start the middle sub-step (γ2 h, α) here; the loop then takes the last one (γ1 h, 0)."""
-        self.addComputeGlobal("phase", "2")
-        self.addComputeGlobal("hsub", MIDDLE_H)
-        self.addComputeGlobal("alpha_sub", "alpha")
-        self._add_midpoint_setup(need_midpoint)
-        self.addComputePerDof("x0", "x")
-        self.addComputePerDof("v0", "v")
-        self.addComputePerDof("fstart", "f")
-        for variable, expression in copies.items():
-            self.addComputePerDof(variable, expression)
-
-    def _add_substep_solve(self, fallback: str) -> None:
-        """Solve the positions of the current inner sub-step (a predictor or a midpoint re-solve)."""
-        self._add_position_solve(first_forces("alpha_sub"), "hsub", fallback)
-        self.addComputeGlobal("substep_done", "1 - need_midpoint")
-
-    def _add_substep_end(self, fallback: str, **copies: str) -> None:
-        """Body of ``if substep_done``: the velocity update, then start the next sub-step."""
-        self._add_velocity_update(last_forces("alpha_sub"), "hsub", fallback)
-        for variable, expression in copies.items():
-            self.addComputePerDof(variable, expression)
-        self.addComputePerDof("x0", "x")
-        self.addComputePerDof("v0", "v")
-        self.addComputePerDof("fstart", "f")
-        self.addComputeGlobal("phase", "phase + 1")
-        self.addComputeGlobal("hsub", OUTER_H)
-        self.addComputeGlobal("alpha_sub", "0")
-        self.addComputeGlobal("need_midpoint", "0")
-        self.addComputeGlobal("previous_midpoint_change", "1e30")
 
     # ---------------------------------------------------------------- stepping
     def step(self, steps: int) -> None:
@@ -258,7 +145,7 @@ class _StepProgram(mm.CustomIntegrator):
 
         The first call finds the bound context, prepares the program for its system and
         platform, and refuses what it cannot do right (:class:`MasslessParticleError`);
-        a NaN in the first 100 steps raises :class:`~.start_blowup.StartBlowUpError`.
+        a NaN in the first 100 steps raises :class:`~openmm_alphaprk.start_blowup.StartBlowUpError`.
         """
         steps = int(steps)
         if steps <= 0:
@@ -353,7 +240,7 @@ class _StepProgram(mm.CustomIntegrator):
     @property
     def steps_taken(self) -> int:
         """Number of steps taken with this integrator."""
-        return int(self.getGlobalVariableByName("steps_taken"))
+        return int(self.getGlobalVariableByName(STEPS_TAKEN))
 
     @property
     def force_evaluations(self) -> int:
@@ -364,7 +251,7 @@ class _StepProgram(mm.CustomIntegrator):
         the user changes the state, or on CUDA/OpenCL/HIP after it reorders the atoms
         (every 250 steps).
         """
-        return int(self.getGlobalVariableByName("force_evaluations"))
+        return int(self.getGlobalVariableByName(FORCE_EVALUATIONS))
 
     @property
     def host_syncs_per_step(self) -> float:
@@ -375,12 +262,12 @@ class _StepProgram(mm.CustomIntegrator):
         with the force evaluation that needs it.
         """
         steps = self.steps_taken
-        return self.getGlobalVariableByName("host_syncs") / steps if steps else float("nan")
+        return self.getGlobalVariableByName(HOST_SYNCS) / steps if steps else float("nan")
 
     @property
     def last_step_force_evaluations(self) -> int:
         """Force evaluations of the last step."""
-        return int(self.getGlobalVariableByName("step_force_evaluations"))
+        return int(self.getGlobalVariableByName(STEP_FORCE_EVALUATIONS))
 
     @property
     def force_evaluations_per_step(self) -> float:

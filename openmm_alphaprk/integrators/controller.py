@@ -1,4 +1,4 @@
-"""The energy-preserving mode of α-RATTLE: the step program pieces of the α* controller.
+"""The energy-preserving mode of α-RATTLE: the step programs of the α* controller.
 
 Each step chooses α so that the total energy after the step equals the reference
 energy E_ref, the energy of the state the run started from (design doc §4). The
@@ -36,98 +36,89 @@ fallback is corrected by later steps and cannot accumulate into drift. A non-fin
 residual or a midpoint iteration that ran away rejects the step (the context keeps
 the state at its start; ``step`` raises).
 
-E_ref is taken from the state at the first step, after :meth:`reset_reference_energy`,
+E_ref is taken from the state at the first step, after ``reset_reference_energy()``,
 and when the user changed the state between steps: the positions or velocities at the
 start of a step differ from those the previous step ended with *and* the total energy
 differs from the one it ended with by more than max(tolerance, 1e-6 |E|). The energy
 test is what tells a user's change from the common platform's reordering and
 re-wrapping of atoms every 250 steps, which moves coordinates but not the energy.
+
+:class:`EnergyControllerProgram` builds on :class:`~.midpoint.MidpointProgram` (its variables
+and pieces); the mode's settings, defaults and reporting are in :mod:`~.energy_mode`. The
+global variables that reporters and scripts read by name are exported as constants.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-import openmm.unit as unit
+from .base import STEP_FORCE_EVALUATIONS
+from .midpoint import ALPHA, MIDDLE_H, MIDPOINT_CHANGE, MidpointProgram, first_forces, last_forces
 
-from . import platforms
-from ._units import to_dimensionless, to_float
-from .step_program import MIDDLE_H, _StepProgram, first_forces, last_forces
+__all__ = [
+    "ALPHA",
+    "ALPHA_AT_BOUND",
+    "FELL_BACK",
+    "MIDPOINT_CHANGE",
+    "REFERENCE_ENERGY",
+    "RESIDUAL",
+    "SLOPE",
+    "SLOPE_SCALE",
+    "STEP_FORCE_EVALUATIONS",
+    "TRIALS",
+    "ControllerSettings",
+    "EnergyControllerProgram",
+]
+
+#: Names of the controller's global variables read by name from outside the program.
+REFERENCE_ENERGY = "reference_energy"
+RESIDUAL = "residual"
+TRIALS = "trials"
+FELL_BACK = "fell_back"
+ALPHA_AT_BOUND = "alpha_at_bound"
+SLOPE = "slope"
+SLOPE_SCALE = "slope_scale"
 
 #: Energy tolerance (kJ/mol) until the first step sets the automatic one.
 PROVISIONAL_ENERGY_TOLERANCE = 0.01
 #: Relative energy change between steps below which a moved state counts as the same
 #: state (the common platform's reordering), unless the energy tolerance is larger.
 _SAME_ENERGY = 1e-6
-DEFAULT_MAX_TRIALS = 3
-DEFAULT_SLOPE_DAMPING = 0.5
 
 
 @dataclass(frozen=True)
-class ControllerDefaults:
-    """Defaults of the energy mode that depend on the order of the method.
-
-    Order 2: α* is O(1) (design doc §4). The doc's interval (−1, 3) lets the greedy
-    controller take large excursions that spoil later steps; over three 400-step
-    runs (2.2 nm smooth TIP3P box, CPU) RMS(H − E_ref) relative to RATTLE was
-    0.82/0.88/0.85 with (−1, 3), 0.25/0.50/0.37 with (−0.5, 1.5), 0.42/0.58/0.54 with
-    (0, 1) and 0.57/0.86/0.76 with (−0.25, 0.75). Order 4 (the
-    triple jump with α on the middle sub-step): α* is O(h²) (§8), a few 1e-2 for
-    water at 2 fs; a large excursion of α turns the step into a poor second-order
-    one, so the interval and the moves are small. The midpoint tolerance can be
-    looser at order 4 because a midpoint error δ changes angular momentum by
-    ≈ 2hα δ × F per step, and α is ~100× smaller.
-    """
+class ControllerSettings:
+    """The controller's validated settings; ``energy_tolerance`` in kJ/mol, None: automatic."""
 
     alpha_bounds: tuple[float, float]
+    energy_tolerance: float | None
+    max_trials: int
     max_alpha_change: float
     alpha_probe: float
-    midpoint_tolerance: float  # nm, RMS per DOF
+    slope_damping: float
 
 
-CONTROLLER_DEFAULTS = {
-    2: ControllerDefaults(
-        alpha_bounds=(-0.5, 1.5), max_alpha_change=1.0, alpha_probe=0.05, midpoint_tolerance=1e-7
-    ),
-    4: ControllerDefaults(
-        alpha_bounds=(-0.2, 0.2), max_alpha_change=0.05, alpha_probe=0.005, midpoint_tolerance=1e-6
-    ),
-}
+class EnergyControllerProgram(MidpointProgram):
+    """The α* controller's variables, pieces and step programs (orders 2 and 4)."""
 
-
-class _EnergyModeProgram(_StepProgram):
-    """The α* controller's variables, step programs and reporting.
-
-    Base of :class:`~openmm_alphaprk.AlphaRattleIntegrator`; built from the pieces
-    of :class:`~openmm_alphaprk.step_program._StepProgram`.
-    """
-
-    def _add_energy_mode_variables(
-        self,
-        alpha_bounds: tuple[float, float],
-        energy_tolerance: float | None,
-        max_trials: int,
-        max_alpha_change: float,
-        alpha_probe: float,
-        slope_damping: float,
-        order: int,
-    ) -> None:
-        low, high = alpha_bounds
-        automatic = energy_tolerance is None
+    def _add_energy_mode_variables(self, settings: ControllerSettings, order: int) -> None:
+        """Declare the controller's settings and state (after :meth:`_add_midpoint_variables`)."""
+        low, high = settings.alpha_bounds
+        automatic = settings.energy_tolerance is None
         for name, value in (
             ("alpha_min", low),
             ("alpha_max", high),
-            ("energy_tolerance", PROVISIONAL_ENERGY_TOLERANCE if automatic else energy_tolerance),
+            ("energy_tolerance", PROVISIONAL_ENERGY_TOLERANCE if automatic else settings.energy_tolerance),
             ("energy_tolerance_automatic", float(automatic)),
-            ("max_trials", max_trials),
-            ("max_alpha_change", max_alpha_change),
-            ("alpha_probe", alpha_probe),
-            ("slope_damping", slope_damping),
-            ("trust", max_alpha_change),  # the move limit; adapted at order 4 only
+            ("max_trials", settings.max_trials),
+            ("max_alpha_change", settings.max_alpha_change),
+            ("alpha_probe", settings.alpha_probe),
+            ("slope_damping", settings.slope_damping),
+            ("trust", settings.max_alpha_change),  # the move limit; adapted at order 4 only
         ):
             self.addGlobalVariable(name, value)
         for name in (
-            "reference_energy",
+            REFERENCE_ENERGY,
             "reference_set",
             "reference_resets",
             "state_moved",
@@ -136,20 +127,20 @@ class _EnergyModeProgram(_StepProgram):
             "retake",
             "retry",
             "kinetic_energy",
-            "residual",
+            RESIDUAL,
             "residual_last",
             "alpha_last",
             "alpha_next",
             "alpha_start",
-            "slope",
-            "slope_scale",
+            SLOPE,
+            SLOPE_SCALE,
             "slope_measured",
-            "trials",
+            TRIALS,
             "last_move",
             "controller_done",
             "restarting",
-            "fell_back",
-            "alpha_at_bound",
+            FELL_BACK,
+            ALPHA_AT_BOUND,
             "steps_within_tolerance",
             "steps_fallen_back",
             "steps_at_bound",
@@ -158,12 +149,6 @@ class _EnergyModeProgram(_StepProgram):
             self.addGlobalVariable(name, 0)
         for name in ("xend", "vend", "fmid_last") + (("xa", "va", "fa", "fstart_last") if order == 4 else ()):
             self.addPerDofVariable(name, 0)
-
-    def _set_automatic_energy_tolerance(self, n_atoms: int, precision: str) -> None:
-        """Set the default energy tolerance for the system and platform, unless the user chose one."""
-        if self.getGlobalVariableByName("energy_tolerance_automatic"):
-            tolerance = platforms.default_energy_tolerance(n_atoms, precision)
-            self.setGlobalVariableByName("energy_tolerance", tolerance)
 
     # ---------------------------------------------------------------- programs
     def _build_energy_program(self) -> None:
@@ -183,7 +168,7 @@ class _EnergyModeProgram(_StepProgram):
         self.addComputeGlobal("solving", "restarting")
         self.endBlock()
         self.beginIfBlock("need_midpoint > 0.5")
-        self._add_midpoint_force("dt", "alpha", iterate=False)
+        self._add_trial_midpoint_force("dt", "alpha")
         self.endBlock()
         self.endBlock()
         self._add_controller_bookkeeping()
@@ -222,7 +207,7 @@ class _EnergyModeProgram(_StepProgram):
         self.addComputeGlobal("alpha_sub", "alpha*restarting")
         self.endBlock()
         self.beginIfBlock("need_midpoint > 0.5")
-        self._add_midpoint_force("hsub", "alpha_sub", iterate=False)
+        self._add_trial_midpoint_force("hsub", "alpha_sub")
         self.endBlock()
         self.endBlock()
         self._add_controller_bookkeeping()
@@ -265,6 +250,24 @@ class _EnergyModeProgram(_StepProgram):
         self.addComputeGlobal("alpha", "min(max(alpha, alpha_min), alpha_max)")
         for name in ("trials", "slope_measured", "controller_done", "restarting"):
             self.addComputeGlobal(name, "0")
+
+    def _add_trial_midpoint_force(self, h: str, alpha: str) -> None:
+        """One pass of the midpoint block: the controller converges the midpoint along with α.
+
+        Like :meth:`~.midpoint.MidpointProgram._add_midpoint_force` but without its
+        stopping test (``need_midpoint`` = 0 after one force); and when ``restarting``
+        is set (a new trial of α), x1 is first solved again from x0 with the new α and
+        the previous midpoint force.
+        """
+        self._add_midpoint_reference()
+        self.addComputePerDof("x", f"select(restarting, x0 + {h}*v0 + {h}*{h}*({first_forces(alpha)})/m, x0)")
+        self.addConstrainPositions()
+        self.addComputePerDof("x1", "select(restarting, x, x1)")
+        self.addComputeGlobal("restarting", "0")
+        self.addComputePerDof("x", "x0")  # the reference of the next solve again (Reference/CPU)
+        self.addConstrainPositions()
+        self._add_midpoint_evaluation(h, alpha)
+        self.addComputeGlobal("need_midpoint", "0")
 
     def _add_trial_end(self, next_start: dict[str, str]) -> None:
         """Residual of the trial, the next α, and either the end of the step or a new trial.
@@ -389,124 +392,3 @@ class _EnergyModeProgram(_StepProgram):
             "move = alpha - alpha_start",
         )
         self.addComputeGlobal("last_move", "alpha - alpha_start")
-
-    # --------------------------------------------------------------- reporting
-    def reset_reference_energy(self) -> None:
-        """Take E_ref from the state at the start of the next step.
-
-        The integrator also notices by itself when positions or velocities were set
-        between steps; call this to be explicit, e.g. after changing parameters of a
-        force (which changes the energy without changing the state).
-        """
-        self._require_energy_mode("reset_reference_energy()")
-        self.setGlobalVariableByName("reference_set", 0)
-
-    @property
-    def reference_energy(self) -> unit.Quantity:
-        """E_ref, the total energy the energy mode holds (NaN before the first step)."""
-        self._require_energy_mode("reference_energy")
-        if not self.getGlobalVariableByName("reference_set") and not self.getGlobalVariableByName(
-            "steps_taken"
-        ):
-            return float("nan") * unit.kilojoules_per_mole
-        return self.getGlobalVariableByName("reference_energy") * unit.kilojoules_per_mole
-
-    @property
-    def energy_residual(self) -> unit.Quantity:
-        """H − E_ref after the last step (total energy with on-step velocities)."""
-        self._require_energy_mode("energy_residual")
-        return self.getGlobalVariableByName("residual") * unit.kilojoules_per_mole
-
-    @property
-    def energy_tolerance(self) -> unit.Quantity:
-        """The controller's target |H − E_ref| per step."""
-        self._require_energy_mode("energy_tolerance")
-        return self.getGlobalVariableByName("energy_tolerance") * unit.kilojoules_per_mole
-
-    @energy_tolerance.setter
-    def energy_tolerance(self, value: unit.Quantity | float) -> None:
-        self._require_energy_mode("energy_tolerance")
-        tolerance = to_float(value, unit.kilojoules_per_mole, "energy_tolerance", positive=True)
-        self.setGlobalVariableByName("energy_tolerance", tolerance)
-        self.setGlobalVariableByName("energy_tolerance_automatic", 0)
-
-    @property
-    def alpha_bounds(self) -> tuple[float, float]:
-        """The interval α* is kept in."""
-        self._require_energy_mode("alpha_bounds")
-        return (self.getGlobalVariableByName("alpha_min"), self.getGlobalVariableByName("alpha_max"))
-
-    @alpha_bounds.setter
-    def alpha_bounds(self, bounds: tuple[float, float]) -> None:
-        self._require_energy_mode("alpha_bounds")
-        low, high = check_alpha_bounds(bounds)
-        self.setGlobalVariableByName("alpha_min", low)
-        self.setGlobalVariableByName("alpha_max", high)
-
-    @property
-    def fell_back(self) -> bool:
-        """Whether the last step ended outside the energy tolerance (α at a bound or trial cap)."""
-        self._require_energy_mode("fell_back")
-        return bool(self.getGlobalVariableByName("fell_back"))
-
-    @property
-    def trials(self) -> int:
-        """Trials of α in the last step (two force evaluations each)."""
-        self._require_energy_mode("trials")
-        return int(self.getGlobalVariableByName("trials"))
-
-    def controller_totals(self) -> dict[str, float]:
-        """Totals since the integrator was created: steps, within tolerance, fallbacks, at bound.
-
-        Returns
-        -------
-        A dict with ``steps``, ``steps_within_tolerance``, ``steps_fallen_back``,
-        ``steps_at_bound``, ``reference_resets`` (counts), the fractions
-        ``fraction_within_tolerance`` and ``fraction_fallen_back``, and
-        ``force_evaluations_per_step``.
-        """
-        self._require_energy_mode("controller_totals()")
-        steps = self.steps_taken
-        totals = {
-            name: int(self.getGlobalVariableByName(name))
-            for name in ("steps_within_tolerance", "steps_fallen_back", "steps_at_bound", "reference_resets")
-        }
-        fraction = (lambda n: n / steps) if steps else (lambda n: float("nan"))
-        return {
-            "steps": steps,
-            **totals,
-            "fraction_within_tolerance": fraction(totals["steps_within_tolerance"]),
-            "fraction_fallen_back": fraction(totals["steps_fallen_back"]),
-            "force_evaluations_per_step": self.force_evaluations_per_step,
-        }
-
-    @property
-    def energy_mode(self) -> bool:
-        """True if α is chosen each step to hold the energy (``alpha="energy"``)."""
-        names = {self.getGlobalVariableName(i) for i in range(self.getNumGlobalVariables())}
-        return "reference_energy" in names
-
-    def _require_energy_mode(self, what: str) -> None:
-        if not self.energy_mode:
-            raise AttributeError(
-                f"{what} exists only in the energy-preserving mode; create the integrator with "
-                "AlphaRattleIntegrator(timestep, alpha='energy')."
-            )
-
-
-def check_alpha_bounds(bounds: object) -> tuple[float, float]:
-    """Validate an α interval ``(low, high)`` with low < high, both finite."""
-    try:
-        low, high = bounds  # type: ignore[misc]
-    except (TypeError, ValueError):
-        raise TypeError(f"alpha_bounds must be a pair (low, high), got {bounds!r}.") from None
-    low = to_dimensionless(low, "alpha_bounds[0]")
-    high = to_dimensionless(high, "alpha_bounds[1]")
-    if not low < high:
-        raise ValueError(
-            f"alpha_bounds must satisfy low < high, got ({low}, {high}); an empty or inverted "
-            "interval leaves the controller nothing to choose. The defaults are "
-            f"{CONTROLLER_DEFAULTS[2].alpha_bounds} (order 2) and "
-            f"{CONTROLLER_DEFAULTS[4].alpha_bounds} (order 4)."
-        )
-    return low, high

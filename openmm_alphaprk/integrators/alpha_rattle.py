@@ -1,15 +1,12 @@
-"""RATTLE and α-RATTLE as OpenMM ``CustomIntegrator`` step programs.
+"""α-RATTLE and α-RATTLE-4 as an OpenMM ``CustomIntegrator``: fixed α or the energy mode.
 
-The α-RATTLE step from a consistent state (x0, v0) with F0 = F(x0) (design doc §3)::
+The class hierarchy, each layer declaring the variables its pieces use::
 
-    x1 = x0 + h v0 + h² M⁻¹[(½−α) F0 + α F(x_m)] − M⁻¹ G(x0)ᵀ λ,   g(x1) = 0,   x_m = (x0+x1)/2
-    v1 = (x1 − x0)/h + h M⁻¹[α F(x_m) + (½−α) F(x1)] − M⁻¹ G(x1)ᵀ μ,  G(x1) v1 = 0
-
-The implicit midpoint force is found by fixed-point iteration started from the RATTLE
-predictor and iterated to a tolerance (a single pass is not symplectic). The programs
-are built from the pieces of :mod:`openmm_alphaprk.step_program`, whose ordering rules
-make the same program correct on the Reference, CPU and common (CUDA, OpenCL, HIP)
-platforms.
+    StepProgram               base.py: common counters, RATTLE pieces, stepping, listing
+    └ MidpointProgram         midpoint.py: α, the midpoint iteration, α-RATTLE-4 sub-steps
+      └ EnergyControllerProgram   controller.py: the α* controller's variables and programs
+        └ EnergyModeProgram       energy_mode.py: its settings, defaults and reporting
+          └ AlphaRattleIntegrator here: validation, the fixed-α programs, the checks at step()
 """
 
 from __future__ import annotations
@@ -17,77 +14,27 @@ from __future__ import annotations
 import openmm as mm
 import openmm.unit as unit
 
-from . import platforms
-from ._units import to_dimensionless, to_float
+from .. import platforms
+from .._units import to_dimensionless, to_float
+from ..observables import positive_int
+from ..smooth_forces import warn_if_not_smooth
+from .base import MasslessParticleError
+from .controller import ControllerSettings
 from .energy_mode import (
     CONTROLLER_DEFAULTS,
     DEFAULT_MAX_TRIALS,
     DEFAULT_SLOPE_DAMPING,
-    _EnergyModeProgram,
-    check_alpha_bounds,
+    EnergyModeProgram,
+    controller_settings,
 )
-from .observables import positive_int
-from .smooth_forces import warn_if_not_smooth
-from .step_program import (
-    KIND_VARIABLE,
-    MasslessParticleError,
-    _StepProgram,
-    first_forces,
-    last_forces,
-)
+from .midpoint import MidpointConvergenceError, first_forces, last_forces
+from .rattle import DEFAULT_CONSTRAINT_TOLERANCE
 
-__all__ = [
-    "KIND_VARIABLE",
-    "AlphaRattleIntegrator",
-    "MasslessParticleError",
-    "MidpointConvergenceError",
-    "RattleIntegrator",
-    "restore_integrator",
-]
-
-DEFAULT_CONSTRAINT_TOLERANCE = 1e-8
 DEFAULT_MIDPOINT_TOLERANCE = 1e-10  # nm, RMS change of x1 per degree of freedom
 DEFAULT_MAX_MIDPOINT_ITERATIONS = 20
 
 
-class MidpointConvergenceError(RuntimeError):
-    """Raised when the implicit midpoint iteration of α-RATTLE fails to converge."""
-
-
-class RattleIntegrator(_StepProgram):
-    """Velocity Verlet with SHAKE/SETTLE positions and RATTLE velocities.
-
-    The standard constrained integrator, written with the same pieces as
-    :class:`AlphaRattleIntegrator` to be the baseline of every comparison.
-    Velocities are at the full step, so ``State.getKineticEnergy()`` is the kinetic
-    energy of the current velocities. One force evaluation per step.
-
-    Parameters
-    ----------
-    timestep
-        Step size (Quantity, or number in picoseconds).
-    constraint_tolerance
-        Relative constraint tolerance passed to ``setConstraintTolerance``.
-    """
-
-    _kind = 1
-
-    def __init__(
-        self,
-        timestep: unit.Quantity | float,
-        constraint_tolerance: float = DEFAULT_CONSTRAINT_TOLERANCE,
-    ) -> None:
-        super().__init__(timestep, constraint_tolerance)
-        self._build_program()
-
-    def _build_program(self) -> None:
-        self._add_save_step_start()
-        self._add_position_solve("0.5*f")
-        self._add_velocity_update("0.5*f")
-        self._add_end_step()
-
-
-class AlphaRattleIntegrator(_EnergyModeProgram):
+class AlphaRattleIntegrator(EnergyModeProgram):
     """α-RATTLE: a one-parameter family of symplectic constrained integrators.
 
     The potential is integrated along the straight path x0 → x1 with weights
@@ -99,9 +46,11 @@ class AlphaRattleIntegrator(_EnergyModeProgram):
     With ``order=4`` the step is α-RATTLE-4, a triple-jump composition with α on the
     middle sub-step only. With ``alpha="energy"`` α is chosen anew every step so that the total energy
     after the step equals E_ref, the energy of the starting state (design doc §4;
-    see :mod:`openmm_alphaprk.energy_mode`). Each step is still a member of the
+    see :mod:`openmm_alphaprk.integrators.controller`). Each step is still a member of the
     family, so constraints and linear momentum are kept exactly and angular momentum
     to the midpoint tolerance; symplecticity is given up.
+
+    :meth:`program_listing` prints the step program OpenMM runs.
 
     Parameters
     ----------
@@ -163,7 +112,6 @@ class AlphaRattleIntegrator(_EnergyModeProgram):
     """
 
     _kind = 2
-    _has_midpoint = True
 
     def __init__(
         self,
@@ -181,81 +129,52 @@ class AlphaRattleIntegrator(_EnergyModeProgram):
         slope_damping: float = DEFAULT_SLOPE_DAMPING,
         order: int = 2,
     ) -> None:
-        if isinstance(order, bool) or order not in (2, 4):
-            raise ValueError(
-                f"order must be 2 (α-RATTLE) or 4 (α-RATTLE-4, the triple-jump composition), got {order!r}."
+        _check_order(order)
+        settings = None
+        if _is_energy_mode(alpha):
+            settings = controller_settings(
+                order,
+                alpha_bounds,
+                energy_tolerance,
+                max_trials,
+                max_alpha_change,
+                alpha_probe,
+                slope_damping,
             )
-        energy_mode = isinstance(alpha, str)
-        if energy_mode and alpha != "energy":
-            raise ValueError(f"alpha must be a number or 'energy', got {alpha!r}.")
-        if energy_mode:
-            defaults = CONTROLLER_DEFAULTS[order]
-            alpha_bounds = defaults.alpha_bounds if alpha_bounds is None else alpha_bounds
-            max_alpha_change = defaults.max_alpha_change if max_alpha_change is None else max_alpha_change
-            alpha_probe = defaults.alpha_probe if alpha_probe is None else alpha_probe
-            low, high = check_alpha_bounds(alpha_bounds)
+            low, high = settings.alpha_bounds
             start_alpha = min(max(0.0, low), high)
-            energy_settings = (
-                (low, high),
-                None
-                if energy_tolerance is None
-                else to_float(energy_tolerance, unit.kilojoules_per_mole, "energy_tolerance", positive=True),
-                positive_int(max_trials, "max_trials"),
-                to_dimensionless(max_alpha_change, "max_alpha_change", positive=True),
-                to_dimensionless(alpha_probe, "alpha_probe", positive=True),
-                to_dimensionless(slope_damping, "slope_damping"),
-            )
-            if energy_settings[-1] < 0:
-                raise ValueError(
-                    f"slope_damping must be >= 0 (0 turns the damping off), got {slope_damping}."
-                )
-            if midpoint_tolerance is None:
-                midpoint_tolerance = defaults.midpoint_tolerance
+            default_tolerance = CONTROLLER_DEFAULTS[order].midpoint_tolerance
         else:
             start_alpha = to_dimensionless(alpha, "alpha")
-            if midpoint_tolerance is None:
-                midpoint_tolerance = DEFAULT_MIDPOINT_TOLERANCE
-        tolerance = to_float(midpoint_tolerance, unit.nanometers, "midpoint_tolerance", positive=True)
+            default_tolerance = DEFAULT_MIDPOINT_TOLERANCE
+        tolerance = to_float(
+            default_tolerance if midpoint_tolerance is None else midpoint_tolerance,
+            unit.nanometers,
+            "midpoint_tolerance",
+            positive=True,
+        )
         max_iterations = positive_int(max_midpoint_iterations, "max_midpoint_iterations")
         super().__init__(timestep, constraint_tolerance)
-        self.addGlobalVariable("alpha", start_alpha)
-        self.addGlobalVariable("midpoint_tolerance", tolerance)
-        self.addGlobalVariable("max_midpoint_iterations", max_iterations)
-        for name in (
-            "midpoint_iterations",
-            "midpoint_change",
-            "previous_midpoint_change",
-            "need_midpoint",
-            "solving",
-            "ndof",
-            "midpoint_failed",
-            "midpoint_failures",
-            "sum_change2",
-        ):
-            self.addGlobalVariable(name, 0)
-        self.addGlobalVariable("order", order)
-        for name in ("fstart", "fmid", "x1"):
-            self.addPerDofVariable(name, 0)
-        if order == 4:
-            for name in ("phase", "hsub", "alpha_sub", "substep_done"):
-                self.addGlobalVariable(name, 0)
-            for name in ("xstep", "vstep"):
-                self.addPerDofVariable(name, 0)
-        if energy_mode:
-            self._add_energy_mode_variables(*energy_settings, order)
+        self._add_midpoint_variables(start_alpha, tolerance, max_iterations, order)
+        self._build(order, settings)
+
+    def _build(self, order: int, settings: ControllerSettings | None) -> None:
+        """Build the program of ``order``: fixed α, or the energy mode with ``settings``."""
+        if settings is not None:
+            self._add_energy_mode_variables(settings, order)
         builders = {
             (2, False): self._build_program,
             (4, False): self._build_order4_program,
             (2, True): self._build_energy_program,
             (4, True): self._build_order4_energy_program,
         }
-        builders[order, energy_mode]()
+        builders[order, settings is not None]()
 
     def _build_program(self) -> None:
         """Order 2, fixed α: RATTLE at α = 0, else a loop of solves and midpoint forces.
 
         At α = 0 the step is the RATTLE block, the same computations as
-        :class:`RattleIntegrator`; its kernels read no global variable, so on CUDA,
+        :class:`~.rattle.RattleIntegrator`; its kernels read no global variable, so on CUDA,
         OpenCL and HIP the step needs no upload of globals to the device (each is a
         synchronisation with the host). The α ≠ 0 block follows it in program text,
         so that its midpoint assignment comes after every constraint step.
@@ -346,9 +265,6 @@ class AlphaRattleIntegrator(_EnergyModeProgram):
         if self.energy_mode:
             self._set_automatic_energy_tolerance(atoms, "single")
 
-    def _set_degrees_of_freedom(self, ndof: int) -> None:
-        self.setGlobalVariableByName("ndof", ndof)
-
     def _check_before_steps(self) -> None:
         if self._massless_count and (self.energy_mode or self.alpha != 0.0):
             raise MasslessParticleError(
@@ -360,101 +276,21 @@ class AlphaRattleIntegrator(_EnergyModeProgram):
                 "triple-jump RATTLE) on CUDA, OpenCL or HIP, or openmm.VerletIntegrator."
             )
 
-    # -------------------------------------------------------------- parameters
-    @property
-    def alpha(self) -> float:
-        """The method parameter α; may be changed between steps.
-
-        In the energy mode: α* of the last step, and setting it sets the α the next
-        step's controller starts from.
-        """
-        return self.getGlobalVariableByName("alpha")
-
-    @alpha.setter
-    def alpha(self, value: float) -> None:
-        self.setGlobalVariableByName("alpha", to_dimensionless(value, "alpha"))
-
-    @property
-    def midpoint_tolerance(self) -> unit.Quantity:
-        """Stopping tolerance of the midpoint iteration (RMS change of x1 per DOF)."""
-        return self.getGlobalVariableByName("midpoint_tolerance") * unit.nanometers
-
-    @midpoint_tolerance.setter
-    def midpoint_tolerance(self, value: unit.Quantity | float) -> None:
-        tolerance = to_float(value, unit.nanometers, "midpoint_tolerance", positive=True)
-        self.setGlobalVariableByName("midpoint_tolerance", tolerance)
-
-    @property
-    def max_midpoint_iterations(self) -> int:
-        """Cap on midpoint force evaluations per step."""
-        return int(self.getGlobalVariableByName("max_midpoint_iterations"))
-
-    @max_midpoint_iterations.setter
-    def max_midpoint_iterations(self, value: int) -> None:
-        self.setGlobalVariableByName(
-            "max_midpoint_iterations", positive_int(value, "max_midpoint_iterations")
-        )
-
-    @property
-    def midpoint_iterations(self) -> int:
-        """Midpoint force evaluations used in the last step (0 at α = 0)."""
-        return int(self.getGlobalVariableByName("midpoint_iterations"))
-
-    @property
-    def midpoint_change(self) -> unit.Quantity:
-        """RMS change of x1 in the last midpoint iteration of the last step."""
-        return self.getGlobalVariableByName("midpoint_change") * unit.nanometers
-
     def __repr__(self) -> str:
         alpha = "'energy'" if self.energy_mode else self.alpha
         order = f", order={self.order}" if self.order != 2 else ""
         return f"{type(self).__name__}(timestep={self.timestep}, alpha={alpha}{order})"
 
-    @property
-    def order(self) -> int:
-        """2 (α-RATTLE) or 4 (α-RATTLE-4)."""
-        return int(self.getGlobalVariableByName("order"))
 
-
-_CLASSES_BY_KIND: dict[int, type[_StepProgram]] = {
-    cls._kind: cls for cls in (RattleIntegrator, AlphaRattleIntegrator)
-}
-
-
-def restore_integrator(integrator: mm.Integrator) -> _StepProgram:
-    """Give a deserialized or ``Context.getIntegrator()`` object its Python class back.
-
-    ``XmlSerializer.deserialize`` and ``Context.getIntegrator`` return a plain
-    ``openmm.CustomIntegrator``. This function recognises integrators made by this
-    package (by the global variable :data:`KIND_VARIABLE`) and changes the class of
-    the same object in place, so it stays bound to its context.
-
-    Parameters
-    ----------
-    integrator
-        An integrator object.
-
-    Returns
-    -------
-    The same object, now an instance of :class:`AlphaRattleIntegrator` or
-    :class:`RattleIntegrator`.
-
-    Raises
-    ------
-    TypeError
-        If ``integrator`` was not made by this package.
-    """
-    if isinstance(integrator, _StepProgram):
-        return integrator
-    kind = None
-    if isinstance(integrator, mm.CustomIntegrator):
-        names = [integrator.getGlobalVariableName(i) for i in range(integrator.getNumGlobalVariables())]
-        if KIND_VARIABLE in names:
-            kind = int(integrator.getGlobalVariableByName(KIND_VARIABLE))
-    if kind not in _CLASSES_BY_KIND:
-        raise TypeError(
-            f"{type(integrator).__name__} object was not created by openmm_alphaprk "
-            f"(no global variable {KIND_VARIABLE!r} with a known value); cannot restore it."
+def _check_order(order: object) -> None:
+    if isinstance(order, bool) or order not in (2, 4):
+        raise ValueError(
+            f"order must be 2 (α-RATTLE) or 4 (α-RATTLE-4, the triple-jump composition), got {order!r}."
         )
-    integrator.__class__ = _CLASSES_BY_KIND[kind]
-    return integrator
+
+
+def _is_energy_mode(alpha: float | str) -> bool:
+    """Tell whether ``alpha`` asks for the energy mode; refuse any other string."""
+    if isinstance(alpha, str) and alpha != "energy":
+        raise ValueError(f"alpha must be a number or 'energy', got {alpha!r}.")
+    return isinstance(alpha, str)

@@ -1,6 +1,6 @@
-"""Integrators by name, for the driver and the command line.
+"""Integrators by name, for the driver and the command line: one vocabulary of names.
 
-Names:
+Names (:data:`VOCABULARY`, in the order ``--help`` lists them):
 
 ``rattle``
     :class:`~openmm_alphaprk.RattleIntegrator` (velocity Verlet with SHAKE/SETTLE and
@@ -33,25 +33,65 @@ from fractions import Fraction
 import openmm as mm
 import openmm.unit as unit
 
-from .integrators import AlphaRattleIntegrator, RattleIntegrator
-from .observables import VERLET_IS_LEAPFROG
-from .platforms import COMMON_PLATFORMS, massless_particles
+from ..observables import VERLET_IS_LEAPFROG
+from ..platforms import COMMON_PLATFORMS, massless_particles
+from .alpha_rattle import AlphaRattleIntegrator
+from .rattle import RattleIntegrator
 
-INTEGRATOR_NAMES = ("rattle", "alpha=<number>", "energy", "alpha4=<number>", "energy4", "verlet")
+
+@dataclass(frozen=True)
+class IntegratorName:
+    """One name of the vocabulary: as written (``<number>`` for a value), what it makes, its help."""
+
+    name: str
+    kind: str
+    order: int
+    help: str
+
+    @property
+    def takes_number(self) -> bool:
+        """True for ``alpha=<number>`` and ``alpha4=<number>``."""
+        return self.name.endswith("=<number>")
+
+
+VOCABULARY = (
+    IntegratorName(
+        "rattle",
+        "rattle",
+        2,
+        "RattleIntegrator (velocity Verlet + SHAKE/SETTLE/RATTLE, 1 force evaluation/step)",
+    ),
+    IntegratorName(
+        "alpha=<number>",
+        "alpha",
+        2,
+        "AlphaRattleIntegrator with fixed alpha, fractions allowed (alpha=1/6; alpha=0 is RATTLE)",
+    ),
+    IntegratorName(
+        "energy",
+        "energy",
+        2,
+        "AlphaRattleIntegrator(alpha='energy'), alpha chosen per step to hold H at E_ref "
+        "(~7 force evaluations/step)",
+    ),
+    IntegratorName(
+        "alpha4=<number>",
+        "alpha",
+        4,
+        "the same with order=4 (triple jump, alpha on the middle sub-step; alpha4=0 is 4th-order "
+        "triple-jump RATTLE, 3 evaluations/step)",
+    ),
+    IntegratorName("energy4", "energy", 4, "order=4 in the energy mode (~6 evaluations/step)"),
+    IntegratorName("verlet", "verlet", 2, VERLET_IS_LEAPFROG),
+)
+_BY_NAME = {entry.name.removesuffix("=<number>"): entry for entry in VOCABULARY}
 
 #: One line per name, for ``--help``.
-INTEGRATOR_HELP = (
-    "rattle = RattleIntegrator (velocity Verlet + SHAKE/SETTLE/RATTLE, 1 force evaluation/step); "
-    "alpha=<number> = AlphaRattleIntegrator with fixed alpha, fractions allowed (alpha=1/6; alpha=0 is "
-    "RATTLE); energy = AlphaRattleIntegrator(alpha='energy'), alpha chosen per step to hold H at E_ref "
-    "(~7 force evaluations/step); alpha4=<number> = the same with order=4 (triple jump, alpha on the middle "
-    "sub-step; alpha4=0 is 4th-order triple-jump RATTLE, 3 evaluations/step); energy4 = order=4 in the "
-    "energy mode (~6 evaluations/step); verlet = " + VERLET_IS_LEAPFROG
-)
+INTEGRATOR_HELP = "; ".join(f"{entry.name} = {entry.help}" for entry in VOCABULARY)
 
 
 class UnknownIntegratorError(ValueError):
-    """Raised for an integrator name that is not one of :data:`INTEGRATOR_NAMES`."""
+    """Raised for an integrator name that is not in :data:`VOCABULARY`."""
 
 
 class IncompatibleSystemError(ValueError):
@@ -101,18 +141,17 @@ def parse_integrator(text: str | IntegratorSpec) -> IntegratorSpec:
     if isinstance(text, IntegratorSpec):
         return text
     cleaned = re.sub(r"\s+", "", str(text)).lower()
-    if cleaned in ("rattle", "verlet", "energy"):
-        return IntegratorSpec(cleaned, text=cleaned)
-    if cleaned == "energy4":
-        return IntegratorSpec("energy", text=cleaned, order=4)
-    match = re.fullmatch(r"alpha(4?)=([-+0-9.e/]+)", cleaned)
-    if match:
+    prefix, equals, number = cleaned.partition("=")
+    entry = _BY_NAME.get(prefix)
+    if entry is not None and not entry.takes_number and not equals:
+        return IntegratorSpec(entry.kind, text=cleaned, order=entry.order)
+    if entry is not None and entry.takes_number and re.fullmatch(r"[-+0-9.e/]+", number):
         try:
-            value = float(Fraction(match.group(2)))
+            value = float(Fraction(number))
         except (ValueError, ZeroDivisionError):
             value = None
         if value is not None and value == value and abs(value) != float("inf"):
-            return IntegratorSpec("alpha", value, text=cleaned, order=4 if match.group(1) else 2)
+            return IntegratorSpec(entry.kind, value, text=cleaned, order=entry.order)
     raise UnknownIntegratorError(
         f"unknown integrator {text!r}; use one of: rattle, verlet, energy, energy4, alpha=<number>, "
         "alpha4=<number> (e.g. alpha=0.5, alpha=1/6, alpha4=0)."

@@ -1,0 +1,42 @@
+"""RATTLE (velocity Verlet with SHAKE/SETTLE and RATTLE) as an OpenMM ``CustomIntegrator``."""
+
+from __future__ import annotations
+
+import openmm.unit as unit
+
+from .base import StepProgram
+
+DEFAULT_CONSTRAINT_TOLERANCE = 1e-8
+
+
+class RattleIntegrator(StepProgram):
+    """Velocity Verlet with SHAKE/SETTLE positions and RATTLE velocities.
+
+    The standard constrained integrator, written with the same pieces as
+    :class:`~openmm_alphaprk.integrators.AlphaRattleIntegrator` to be the baseline of
+    every comparison. Velocities are at the full step, so ``State.getKineticEnergy()``
+    is the kinetic energy of the current velocities. One force evaluation per step.
+
+    Parameters
+    ----------
+    timestep
+        Step size (Quantity, or number in picoseconds).
+    constraint_tolerance
+        Relative constraint tolerance passed to ``setConstraintTolerance``.
+    """
+
+    _kind = 1
+
+    def __init__(
+        self,
+        timestep: unit.Quantity | float,
+        constraint_tolerance: float = DEFAULT_CONSTRAINT_TOLERANCE,
+    ) -> None:
+        super().__init__(timestep, constraint_tolerance)
+        self._build_program()
+
+    def _build_program(self) -> None:
+        self._add_save_step_start()
+        self._add_position_solve("0.5*f")
+        self._add_velocity_update("0.5*f")
+        self._add_end_step()

@@ -1,0 +1,52 @@
+"""Give an integrator that OpenMM handed back as a plain ``CustomIntegrator`` its class again."""
+
+from __future__ import annotations
+
+import openmm as mm
+
+from .alpha_rattle import AlphaRattleIntegrator
+from .base import KIND_VARIABLE, StepProgram
+from .rattle import RattleIntegrator
+
+_CLASSES_BY_KIND: dict[int, type[StepProgram]] = {
+    cls._kind: cls for cls in (RattleIntegrator, AlphaRattleIntegrator)
+}
+
+
+def restore_integrator(integrator: mm.Integrator) -> StepProgram:
+    """Give a deserialized or ``Context.getIntegrator()`` object its Python class back.
+
+    ``XmlSerializer.deserialize`` and ``Context.getIntegrator`` return a plain
+    ``openmm.CustomIntegrator``. This function recognises integrators made by this
+    package (by the global variable :data:`~.base.KIND_VARIABLE`) and changes the class of
+    the same object in place, so it stays bound to its context.
+
+    Parameters
+    ----------
+    integrator
+        An integrator object.
+
+    Returns
+    -------
+    The same object, now an instance of :class:`~.alpha_rattle.AlphaRattleIntegrator` or
+    :class:`~.rattle.RattleIntegrator`.
+
+    Raises
+    ------
+    TypeError
+        If ``integrator`` was not made by this package.
+    """
+    if isinstance(integrator, StepProgram):
+        return integrator
+    kind = None
+    if isinstance(integrator, mm.CustomIntegrator):
+        names = [integrator.getGlobalVariableName(i) for i in range(integrator.getNumGlobalVariables())]
+        if KIND_VARIABLE in names:
+            kind = int(integrator.getGlobalVariableByName(KIND_VARIABLE))
+    if kind not in _CLASSES_BY_KIND:
+        raise TypeError(
+            f"{type(integrator).__name__} object was not created by openmm_alphaprk "
+            f"(no global variable {KIND_VARIABLE!r} with a known value); cannot restore it."
+        )
+    integrator.__class__ = _CLASSES_BY_KIND[kind]
+    return integrator
