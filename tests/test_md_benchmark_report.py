@@ -2,22 +2,14 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-SCRIPT = Path(__file__).resolve().parents[1] / "docs" / "scripts" / "md_benchmark_report.py"
-
-
-@pytest.fixture(scope="module")
-def report():
-    spec = importlib.util.spec_from_file_location("md_benchmark_report", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+from openmm_alphaprk.reports.markdown import replace_generated
+from openmm_alphaprk.reports.md_benchmark_analysis import compare_dynamics
+from openmm_alphaprk.reports.md_benchmark_tables import scan_markdown, scan_table
 
 
 def _row(system, integrator, step, status="ok", max_abs=0.1, dof=1000.0):
@@ -35,7 +27,7 @@ def _row(system, integrator, step, status="ok", max_abs=0.1, dof=1000.0):
     }
 
 
-def test_largest_stable_step_is_the_last_before_the_first_unstable_or_failed_step(report):
+def test_largest_stable_step_is_the_last_before_the_first_unstable_or_failed_step():
     cells = [
         _row("box", "rattle", 2.0, max_abs=1.0),
         _row("box", "rattle", 3.0, max_abs=10.0),
@@ -50,29 +42,29 @@ def test_largest_stable_step_is_the_last_before_the_first_unstable_or_failed_ste
         _row("other", "rattle", 3.0, status="failed"),
     ]
     rows = {(r["system"], r["integrator"], r["timestep_fs"], r["seed"]): r for r in cells}
-    scan = report.scan_table(rows, "box")
+    scan = scan_table(rows, "box")
     assert scan["rattle"]["largest_stable_fs"] == 3.0 and "0.5" not in scan["rattle"]
     assert scan["rattle"]["4"]["stable"] is False and scan["rattle"]["4"]["max_abs_residual_per_dof"] == 0.06
     assert scan["energy4"]["largest_stable_fs"] == 2.0 and scan["energy4"]["3"]["status"] == "failed"
     assert scan["verlet"]["largest_stable_fs"] == scan["verlet"]["scanned_to_fs"] == 3.0
-    table = report.scan_markdown("box", scan)
+    table = scan_markdown("box", scan)
     assert "| RATTLE | 1.0e-03 | 1.0e-02 | 6.0e-02 (unstable) | 1.0e-03 | 3 fs |" in table
     assert "✗" in table and "≥ 3 fs (scan end)" in table and "not scanned" in table
     # a system with only main runs has no scan
-    assert report.scan_table({k: v for k, v in rows.items() if v["timestep_fs"] <= 2.0}, "box") == {}
+    assert scan_table({k: v for k, v in rows.items() if v["timestep_fs"] <= 2.0}, "box") == {}
 
 
-def test_generated_blocks_are_replaced_and_missing_markers_refused(report):
+def test_generated_blocks_are_replaced_and_missing_markers_refused():
     page = "intro\n<!-- generated: x -->\nold\ntext\n<!-- end generated: x -->\nrest\n<!-- generated: y -->\n"
     page += "<!-- end generated: y -->\n"
-    new = report.replace_generated(page, "x", "new table\n")
+    new = replace_generated(page, "x", "new table\n")
     assert new.startswith("intro\n<!-- generated: x -->\nnew table\n<!-- end generated: x -->\nrest")
-    assert report.replace_generated(new, "y", "filled").count("filled") == 1
+    assert replace_generated(new, "y", "filled").count("filled") == 1
     with pytest.raises(SystemExit, match="no markers"):
-        report.replace_generated(page, "z", "anything")
+        replace_generated(page, "z", "anything")
 
 
-def test_dynamics_comparison(report):
+def test_dynamics_comparison():
     r = np.linspace(0, 8, 81)
     g_ref = np.where(r > 2.5, 1.0 + np.exp(-((r - 2.8) ** 2) / 0.02), 0.0)
     freq = np.linspace(0, 2000, 401)
@@ -87,7 +79,7 @@ def test_dynamics_comparison(report):
         "spectrum": spectrum.tolist(),
         "bands": {"libration": {"centroid": 560.0, "weight": 0.7}},
     }
-    same = report.compare_dynamics(reference, reference)
+    same = compare_dynamics(reference, reference)
     assert same["rdf_rms_difference"] == 0 and same["diffusion_relative_difference"] == 0
     assert (
         same["spectrum_difference"] == pytest.approx(0, abs=1e-12) and same["libration_centroid_shift"] == 0
@@ -97,7 +89,7 @@ def test_dynamics_comparison(report):
         "rdf_g": (g_ref + 0.1 * (r > 2.4)).tolist(),
     }
     other["bands"] = {"libration": {"centroid": 565.0, "weight": 0.7}}
-    diff = report.compare_dynamics(other, reference)
+    diff = compare_dynamics(other, reference)
     assert diff["rdf_rms_difference"] == pytest.approx(0.1)
     assert diff["diffusion_relative_difference"] == pytest.approx(0.1)
     assert diff["libration_centroid_shift"] == pytest.approx(5.0)

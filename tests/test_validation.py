@@ -3,16 +3,14 @@
 Each test recomputes its claim on a smaller scale than the page (fewer steps or
 step sizes) and fails if the claim is false; the numbers in the comments are the
 page's (docs/validation.json). The last tests check that the page's tables are
-the ones docs/scripts/validation.py renders from docs/validation.json.
+the ones ``python -m openmm_alphaprk.reports.validation`` renders from docs/validation.json.
 Already asserted elsewhere (the page refers to them): orders 2 and 4 on the spring
 pendulum and α-RATTLE-4's α* = O(h²) there (test_reference_theory.py,
 test_order4.py), symplecticity of fixed α against one pass, momenta on small
 clusters with tight tolerances, OpenMM against the reference step for step.
 """
 
-import importlib.util
 import json
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -33,20 +31,13 @@ from openmm_alphaprk.reference import (
     symplecticity_defect,
     water_cluster,
 )
+from openmm_alphaprk.reports import markdown, validation_tables
 
 DOCS = Path(__file__).resolve().parents[1] / "docs"
 
 
 def _slope(hs, errors):
     return float(np.polyfit(np.log(hs), np.log(errors), 1)[0])
-
-
-def _script():
-    spec = importlib.util.spec_from_file_location("validation_script", DOCS / "scripts" / "validation.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # dataclasses look their module up there
-    spec.loader.exec_module(module)
-    return module
 
 
 # ------------------------------------------------------------ plain pendulum (κ = 0)
@@ -365,11 +356,10 @@ def test_openmm_energy_modes_on_the_774_atom_box(tmp_path):
 
 # ------------------------------------------------------------------- the page itself
 def test_page_tables_are_the_ones_rendered_from_the_json():
-    script = _script()
     data = json.loads((DOCS / "validation.json").read_text(encoding="utf-8"))
     assert not data["quick"]
-    rendered = script.render_tables(data)
-    on_page = script.page_tables(DOCS / "validation.md")
+    rendered = validation_tables.render_tables(data)
+    on_page = markdown.page_tables(DOCS / "validation.md")
     assert set(on_page) == set(rendered)
     for name, table in rendered.items():
         assert on_page[name] == table, f"table {name!r} of docs/validation.md is not the JSON's"
@@ -380,11 +370,12 @@ def test_page_tables_are_the_ones_rendered_from_the_json():
 
 @pytest.mark.slow
 def test_quick_run_of_the_script_writes_everything(tmp_path):
-    script = _script()
+    from openmm_alphaprk.reports import validation
+
     page = tmp_path / "page.md"
-    page.write_text("<!-- table: orders -->\n<!-- end table -->\n", encoding="utf-8")
+    page.write_text("<!-- generated: orders -->\n<!-- end generated: orders -->\n", encoding="utf-8")
     assert (
-        script.main(
+        validation.main(
             ["--quick", "--json", str(tmp_path / "v.json"), "--figures", str(tmp_path), "--page", str(page)]
         )
         == 0

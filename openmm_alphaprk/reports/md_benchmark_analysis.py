@@ -1,0 +1,145 @@
+"""The MD benchmark's dynamics analyses and timing: RDF, diffusion, VACF spectrum, interleaved cost.
+
+:func:`analyse_run` analyses one run directory with MDAnalysis (cached in it),
+:func:`compare_dynamics` compares a run with the small-step reference, and
+:func:`timing_table` times the integrators of the energy table in this process.
+"""
+
+from __future__ import annotations
+
+import json
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from .md_benchmark_results import ENERGY_ROWS, label
+
+ANALYSIS_FILE = "md_benchmark_analysis.json"
+ANALYSIS_VERSION = 1
+WATER_O = "resname HOH and name O"
+WATER_H = "resname HOH and name H1 H2"
+RDF_RANGE = (0.0, 8.0)  # Å
+RDF_BINS = 80
+RDF_COMPARE = (2.4, 8.0)  # Å: where g(r) is compared (below 2.4 Å it is zero)
+BANDS = {"translation": (0.0, 300.0), "libration": (300.0, 1100.0)}  # cm⁻¹
+SPECTRUM_COMPARE = (0.0, 1200.0)  # cm⁻¹
+
+
+def analyse_run(directory: Path) -> dict:
+    """Return the O–O RDF, water O diffusion and water-H VACF spectrum of one run (cached in the run dir)."""
+    cache = directory / ANALYSIS_FILE
+    if cache.is_file():
+        stored = json.loads(cache.read_text(encoding="utf-8"))
+        if stored.get("version") == ANALYSIS_VERSION:
+            return stored
+    import MDAnalysis as mda
+
+    from ..analysis import Diffusion, VelocityAutocorrelation, band_summary
+    from ..analysis.structure import oxygen_rdf
+
+    warnings.filterwarnings("ignore", category=DeprecationWarning)
+    result: dict = {"version": ANALYSIS_VERSION}
+    topology = str(directory / "topology.pdb")
+    positions = mda.Universe(topology, str(directory / "trajectory.dcd"))
+    rdf = oxygen_rdf(positions, select=WATER_O, nbins=RDF_BINS, r_max=RDF_RANGE[1])
+    result["rdf_r"] = rdf.results.bins.tolist()
+    result["rdf_g"] = rdf.results.rdf.tolist()
+    msd = Diffusion(positions, select=WATER_O).run()
+    result["diffusion"] = float(msd.results.diffusion_coefficient)
+    # Error of D: the spread of D over 4 disjoint groups of molecules, / sqrt(4).
+    oxygens = positions.select_atoms(WATER_O)
+    groups = [oxygens[i::4] for i in range(4)]
+    d_groups = [
+        float(
+            Diffusion(positions, select="index " + " ".join(map(str, g.indices)))
+            .run()
+            .results.diffusion_coefficient
+        )
+        for g in groups
+    ]
+    result["diffusion_error"] = float(np.std(d_groups, ddof=1) / np.sqrt(len(groups)))
+    velocities_file = directory / "velocities.dcd"
+    if velocities_file.is_file():
+        velocities = mda.Universe(topology, str(velocities_file))
+        vacf = VelocityAutocorrelation(velocities, select=WATER_H, max_lag=1.0).run()
+        result["frequencies"] = vacf.results.frequencies.tolist()
+        result["spectrum"] = vacf.results.spectrum.tolist()
+        result["bands"] = {
+            name: band_summary(vacf.results.frequencies, vacf.results.spectrum, low, high)
+            for name, (low, high) in BANDS.items()
+        }
+    cache.write_text(json.dumps(result) + "\n", encoding="utf-8")
+    return result
+
+
+def compare_dynamics(run: dict, reference: dict) -> dict:
+    """Return the differences of RDF, D and spectrum of a run from the reference run."""
+    from ..analysis import spectrum_difference
+
+    r = np.asarray(run["rdf_r"])
+    window = (r >= RDF_COMPARE[0]) & (r <= RDF_COMPARE[1])
+    g, g_ref = np.asarray(run["rdf_g"]), np.asarray(reference["rdf_g"])
+    out = {
+        "rdf_rms_difference": float(np.sqrt(np.mean((g[window] - g_ref[window]) ** 2))),
+        "rdf_first_peak": float(g[window].max()),
+        "diffusion": run["diffusion"],
+        "diffusion_error": run["diffusion_error"],
+        "diffusion_relative_difference": run["diffusion"] / reference["diffusion"] - 1.0,
+    }
+    if "spectrum" in run and "spectrum" in reference:
+        out["spectrum_difference"] = spectrum_difference(
+            np.asarray(run["frequencies"]),
+            np.asarray(run["spectrum"]),
+            np.asarray(reference["frequencies"]),
+            np.asarray(reference["spectrum"]),
+            *SPECTRUM_COMPARE,
+        )
+        out["libration_centroid"] = run["bands"]["libration"]["centroid"]
+        out["libration_centroid_shift"] = (
+            run["bands"]["libration"]["centroid"] - reference["bands"]["libration"]["centroid"]
+        )
+        out["libration_weight"] = run["bands"]["libration"]["weight"]
+    return out
+
+
+# ---------------------------------------------------------------- timing
+
+
+def timing_table(system: str, steps: int = 30, rounds: int = 3) -> dict[str, dict]:
+    """Time every integrator of the energy table on one system in interleaved rounds (this process).
+
+    The sweep's cells ran one after another, each timing itself, while other work may have
+    shared the machine; interleaving the integrators round by round puts such load on all
+    of them alike, so the ratios to RATTLE 2 fs are the numbers to read. Median ms/step of
+    ``rounds`` rounds of ``steps`` steps from the equilibrated start, CPU platform.
+    """
+    import openmm as mm
+
+    from ..benchmarks.cost import interleaved_timing
+    from ..integrators.names import make_integrator
+    from ..systems import prepare_system
+
+    prepared = prepare_system(system, progress=False)
+    platform = mm.Platform.getPlatformByName("CPU")
+    runs = {}
+    for integrator_name, step in ENERGY_ROWS:
+        integrator = make_integrator(integrator_name, step / 1000.0, 1e-8)
+        context = mm.Context(prepared.system, integrator, platform)
+        context.setState(prepared.state)
+        integrator.step(2)  # program analysis, first forces
+        runs[label(integrator_name, step)] = (integrator, context, step)
+    medians = interleaved_timing(
+        {name: (integrator, 1) for name, (integrator, _context, _step) in runs.items()}, steps, rounds
+    )
+    baseline = medians[label("rattle", 2.0)]
+    table = {}
+    for name, (_integrator, _context, step) in runs.items():
+        ms = medians[name]
+        table[name] = {
+            "ms_per_step": ms,
+            "time_per_step_ratio": ms / baseline,
+            "time_per_ps_ratio": ms / baseline * 2.0 / step,
+            "ns_per_day": step * 1e-6 / (ms * 1e-3) * 86400.0,
+        }
+    return table
