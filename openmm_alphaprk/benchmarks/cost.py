@@ -157,6 +157,18 @@ def run_benchmark(
     for name, make in integrators.items():
         integrator = make()
         runs[name] = integrator, _context(box, integrator, plat, constraint_tolerance, properties)
+    rows = _timed_rows(runs, steps, rounds, progress)
+    del runs
+    for row, make in zip(rows, integrators.values()):
+        if progress:
+            print(f"energy pass: {row.name}", file=sys.stderr, flush=True)
+        context_args = (plat, constraint_tolerance, properties)
+        row.energy_rms = _energy_rms(box, make(), context_args, energy_steps)
+    return rows
+
+
+def _timed_rows(runs: dict, steps: int, rounds: int, progress: bool) -> list[BenchmarkRow]:
+    """Time the integrators of ``runs`` (name → (integrator, context)) in interleaved rounds."""
     for integrator, _ in runs.values():
         integrator.step(2)  # program analysis and first force evaluations
     evaluations_before = {name: _force_evaluations(integrator) for name, (integrator, _) in runs.items()}
@@ -168,29 +180,27 @@ def run_benchmark(
     baseline = medians[next(iter(medians))]
     for name, (integrator, _) in runs.items():
         evaluations = _force_evaluations(integrator)
-        per_step = (
-            (evaluations - evaluations_before[name]) / (steps * rounds) if evaluations is not None else 1.0
-        )
+        timed = steps * rounds
+        per_step = (evaluations - evaluations_before[name]) / timed if evaluations is not None else 1.0
+        syncs = (_host_syncs(integrator) - syncs_before[name]) / timed
         ms = medians[name]
-        syncs = (_host_syncs(integrator) - syncs_before[name]) / (steps * rounds)
         rows.append(BenchmarkRow(name, ms, ms / baseline, per_step, float("nan"), host_syncs_per_step=syncs))
     rattle = medians.get("RattleIntegrator")
     for row in rows:
         if rattle:
             row.ratio_per_evaluation = row.ms_per_step / row.force_evaluations_per_step / rattle
-    del runs
-    for row, make in zip(rows, integrators.values()):
-        if progress:
-            print(f"energy pass: {row.name}", file=sys.stderr, flush=True)
-        integrator = make()
-        context = _context(box, integrator, plat, constraint_tolerance, properties)
-        e0 = total_energy(context)
-        residuals = []
-        for _ in range(energy_steps):
-            integrator.step(1)
-            residuals.append(total_energy(context) - e0)
-        row.energy_rms = float(np.sqrt(np.mean(np.square(residuals))))
     return rows
+
+
+def _energy_rms(box: PreparedSystem, integrator: mm.Integrator, context_args: tuple, steps: int) -> float:
+    """RMS of H − E0 (kJ/mol) over ``steps`` steps, the energy read after every step."""
+    context = _context(box, integrator, *context_args)
+    e0 = total_energy(context)
+    residuals = []
+    for _ in range(steps):
+        integrator.step(1)
+        residuals.append(total_energy(context) - e0)
+    return float(np.sqrt(np.mean(np.square(residuals))))
 
 
 def _force_evaluations(integrator: mm.Integrator) -> int | None:

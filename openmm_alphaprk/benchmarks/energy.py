@@ -193,17 +193,27 @@ def run_energy_benchmark(
     residuals
         H − E_ref after every benchmark step, by row name (for plots).
     """
-    plat = mm.Platform.getPlatformByName(platform)
-    dof = degrees_of_freedom(box.system)
-    integrators = dict(integrators)
+    run = dict(
+        plat=mm.Platform.getPlatformByName(platform),
+        samples=steps // sample_every,
+        dof=degrees_of_freedom(box.system),
+        progress=progress,
+        every=sample_every,
+        properties=properties,
+    )
+    rows, traces, runs = _run_rows(box, dict(integrators), equal_cost, run)
+    _add_timing(rows, runs, timing_steps, timing_rounds)
+    return rows, traces
+
+
+def _run_rows(box: PreparedSystem, integrators: dict, equal_cost: bool, run: dict) -> tuple:
+    """Run every row in turn; the equal-cost RATTLE row joins once its k is measured."""
     rows, traces, runs = [], {}, {}
     names = list(integrators)
     while names:
         name = names.pop(0)
         spec = integrators[name]
-        row, residuals, integrator, context = _run_one(
-            name, spec, box, plat, steps // sample_every, dof, progress, sample_every, properties
-        )
+        row, residuals, integrator, context = _run_one(name, spec, box, **run)
         rows.append(row)
         traces[name] = residuals
         runs[name] = integrator, context, spec.substeps
@@ -213,17 +223,21 @@ def run_energy_benchmark(
             equal_name = f"RATTLE h/{k}"
             integrators[equal_name] = equal_cost_rattle(timestep, k)
             names.append(equal_name)
+    return rows, traces, runs
+
+
+def _add_timing(rows: list[EnergyRow], runs: dict, steps: int, rounds: int) -> None:
+    """Fill ms/step and the time ratio to the first row from interleaved rounds (no energy read-out)."""
     medians = interleaved_timing(
         {row.name: (runs[row.name][0], runs[row.name][2]) for row in rows if row.blew_up_at_step is None},
-        timing_steps,
-        timing_rounds,
+        steps,
+        rounds,
     )
     baseline = medians.get(rows[0].name, float("nan"))
     for row in rows:
         if row.name in medians:
             row.ms_per_step = medians[row.name]
             row.time_ratio = row.ms_per_step / baseline
-    return rows, traces
 
 
 def largest_stable_step(

@@ -174,25 +174,31 @@ def alpha_rattle_step(
     elif alpha != 0.0:
         if midpoint_solver != "fixed-point":
             raise ValueError(f"midpoint_solver must be 'fixed-point' or 'newton', got {midpoint_solver!r}.")
-        for iteration in range(1, max_midpoint_iterations + 1):
-            f_mid = problem.force(0.5 * (x0 + x1))
-            info.force_evaluations += 1
-            x1_new = positions(f_mid)
-            change = float(np.max(np.abs(x1_new - x1)))
-            x1 = x1_new
-            info.midpoint_iterations = iteration
-            info.midpoint_change = change
-            if one_pass or change <= midpoint_tolerance:
-                break
-        else:
-            raise RuntimeError(
-                f"midpoint iteration did not converge in {max_midpoint_iterations} iterations "
-                f"(last change {change:.3g}); reduce h or |alpha|."
-            )
+        x1, f_mid = _fixed_point_midpoint(
+            problem, x0, x1, positions, midpoint_tolerance, max_midpoint_iterations, one_pass, info
+        )
     f1 = problem.force(x1)
     info.force_evaluations += 1
     v1 = project_velocities(problem, x1, (x1 - x0) / h + h * minv * (alpha * f_mid + (0.5 - alpha) * f1))
     return x1, v1, f1
+
+
+def _fixed_point_midpoint(problem, x0, x1, positions, tol, max_iter, one_pass, info):
+    """Iterate x1 = positions(F((x0 + x1)/2)) until x1 moves by at most ``tol`` (max-norm)."""
+    for iteration in range(1, max_iter + 1):
+        f_mid = problem.force(0.5 * (x0 + x1))
+        info.force_evaluations += 1
+        x1_new = positions(f_mid)
+        change = float(np.max(np.abs(x1_new - x1)))
+        x1 = x1_new
+        info.midpoint_iterations = iteration
+        info.midpoint_change = change
+        if one_pass or change <= tol:
+            return x1, f_mid
+    raise RuntimeError(
+        f"midpoint iteration did not converge in {max_iter} iterations "
+        f"(last change {change:.3g}); reduce h or |alpha|."
+    )
 
 
 def _newton_midpoint(problem, x0, x1, positions, tol, max_iter, info):

@@ -89,20 +89,7 @@ def equilibrate(
             context, float(eq["minimize_tolerance_kJ_per_mol_nm"]), int(eq["minimize_max_iterations"])
         )
     context.setVelocitiesToTemperature(kelvin, int(eq["seed"]))
-    steps = int(eq["langevin_steps"])
-    with tqdm(
-        total=steps,
-        desc=f"equilibrating {definition.name}",
-        unit="step",
-        disable=not progress,
-        file=sys.stderr,
-    ) as bar:
-        done = 0
-        while done < steps:
-            chunk = min(100, steps - done)
-            integrator.step(chunk)
-            done += chunk
-            bar.update(chunk)
+    _step_in_chunks(integrator, int(eq["langevin_steps"]), f"equilibrating {definition.name}", progress)
     context.applyConstraints(FINAL_CONSTRAINT_TOLERANCE)
     context.applyVelocityConstraints(FINAL_CONSTRAINT_TOLERANCE)
     if eq.get("zero_momentum"):
@@ -124,6 +111,17 @@ def equilibrate(
             "check the structure or shorten langevin_timestep_fs."
         )
     return state
+
+
+def _step_in_chunks(integrator: mm.Integrator, steps: int, description: str, progress: bool) -> None:
+    """Take ``steps`` steps in chunks of 100, with a progress bar on stderr if asked."""
+    with tqdm(total=steps, desc=description, unit="step", disable=not progress, file=sys.stderr) as bar:
+        done = 0
+        while done < steps:
+            chunk = min(100, steps - done)
+            integrator.step(chunk)
+            done += chunk
+            bar.update(chunk)
 
 
 def _water_cluster(forcefield: app.ForceField, model: str, radius: float) -> app.Modeller:

@@ -133,12 +133,26 @@ def prepare_system(
         if check is not None:
             check(prepared.system)
         return prepared
+    prepared = _build(definition, key, path if use_cache else None, progress, check)
+    if use_cache:
+        prepared.path = path
+    return prepared
+
+
+def _build(
+    definition: SystemDefinition,
+    key: str,
+    path: Path | None,
+    progress: bool,
+    check: Callable[[mm.System], None] | None,
+) -> PreparedSystem:
+    """Build and equilibrate ``definition``; write it into the cache folder ``path`` unless None."""
     topology, positions, forcefield = build_model(definition)
     system = create_system(definition, topology, forcefield)
     if check is not None:
         check(system)
     if progress:
-        where = f"; cached in {path}" if use_cache else ""
+        where = f"; cached in {path}" if path is not None else ""
         print(
             f"building {definition.name} ({system.getNumParticles()} atoms): minimizing and equilibrating, "
             f"once{where}",
@@ -148,9 +162,8 @@ def prepare_system(
     start = time.perf_counter()
     state = equilibrate(definition, system, positions, progress=progress)
     prepared = PreparedSystem(definition.name, definition, key, topology, system, state)
-    if use_cache:
+    if path is not None:
         _write(prepared, path, build_seconds=time.perf_counter() - start)
-        prepared.path = path
     return prepared
 
 

@@ -15,6 +15,14 @@ from .._units import to_float
 from .cache import PreparedSystem, prepare_system
 from .definitions import parse_definition
 
+#: Equilibration of :func:`build_water_box` (seed, temperature, steps and platform: its arguments).
+EQUILIBRATION = {
+    "minimize_tolerance_kJ_per_mol_nm": 10.0,
+    "minimize_max_iterations": 500,
+    "langevin_timestep_fs": 2.0,
+    "langevin_friction_per_ps": 5.0,
+}
+
 
 def build_water_box(
     box_size: unit.Quantity | float = 3.0,
@@ -62,47 +70,36 @@ def build_water_box(
     Notes
     -----
     The defaults make the forces smooth at the cutoff, as an energy-conservation
-    study needs. Measured on a 1.8 nm box (0.8 nm cutoff, Reference platform, 60
-    steps): with OpenMM's defaults (no switch, Ewald tolerance 5e-4) RATTLE's
-    RMS(H − E0) is 0.93 kJ/mol at 2 fs and 0.88 at 0.67 fs — the energy error is
-    the jumps of pairs crossing the cutoff, not the integrator's; with the switch
-    and 1e-5 it is 0.71 at 2 fs and 0.085 at 0.67 fs, the h² scaling of the
-    integrator (1e-6 scales as well, but costs 3.2× a 5e-4 force evaluation on the
-    CPU platform for a 3 nm box, 1e-5 1.3×).
+    study needs (with OpenMM's defaults the energy error of a water box is pairs
+    crossing the cutoff, not the integrator's; measured in docs/smooth_forces.md).
     """
     edge = to_float(box_size, unit.nanometers, "box_size", positive=True)
     rc = to_float(cutoff, unit.nanometers, "cutoff", positive=True)
-    kelvin = to_float(temperature, unit.kelvin, "temperature", positive=True)
     if rc >= edge / 2:
         raise ValueError(f"cutoff {rc} nm must be below half the box edge ({edge / 2} nm); use a larger box.")
-    switch = _switch_distance(switch_distance, rc)
+    build = _build_table(model, edge, rc, _switch_distance(switch_distance, rc), ewald_error_tolerance)
+    kelvin = to_float(temperature, unit.kelvin, "temperature", positive=True)
+    equilibration = {**EQUILIBRATION, "seed": int(seed), "temperature_K": kelvin, "platform": platform}
+    equilibration["langevin_steps"] = int(equilibration_steps)
+    definition = parse_definition({"build": build, "equilibration": equilibration}, f"{model}-box-{edge:g}nm")
+    return prepare_system(definition, use_cache=False)
+
+
+def _build_table(model: str, edge: float, cutoff: float, switch: float | None, ewald: object) -> dict:
+    """Return the ``[build]`` table of a PME water box definition."""
     build = {
         "kind": "water_box",
         "forcefield": [f"{model}.xml"],
         "water_model": model,
         "box_edge_nm": edge,
         "nonbonded_method": "PME",
-        "cutoff_nm": rc,
-        "ewald_error_tolerance": to_float(
-            ewald_error_tolerance, unit.dimensionless, "ewald_error_tolerance", positive=True
-        ),
+        "cutoff_nm": cutoff,
+        "ewald_error_tolerance": to_float(ewald, unit.dimensionless, "ewald_error_tolerance", positive=True),
         "constraints": "HBonds",
     }
     if switch is not None:
         build["switch_distance_nm"] = switch
-    equilibration = {
-        "seed": int(seed),
-        "temperature_K": kelvin,
-        "minimize_tolerance_kJ_per_mol_nm": 10.0,
-        "minimize_max_iterations": 500,
-        "langevin_steps": int(equilibration_steps),
-        "langevin_timestep_fs": 2.0,
-        "langevin_friction_per_ps": 5.0,
-        "platform": platform,
-    }
-    name = f"{model}-box-{edge:g}nm"
-    definition = parse_definition({"build": build, "equilibration": equilibration}, name)
-    return prepare_system(definition, use_cache=False)
+    return build
 
 
 def _switch_distance(switch_distance: object, cutoff: float) -> float | None:
