@@ -14,9 +14,8 @@ import MDAnalysis as mda
 import openmm as mm
 
 from openmm_alphaprk.analysis import ConstraintDeviation, Diffusion, energy_drift, oxygen_rdf
-from openmm_alphaprk.driver import run_nve
 from openmm_alphaprk.observables import degrees_of_freedom
-from openmm_alphaprk.rundir import read_energies
+from openmm_alphaprk.runs import read_energies, run_nve
 
 parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
 parser.add_argument("run", nargs="?", default=None, help="a run directory (default: make one)")

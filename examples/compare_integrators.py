@@ -7,7 +7,7 @@ The same as ``alphaprk compare``, from Python:
 
 import argparse
 
-from openmm_alphaprk.compare import compare
+from openmm_alphaprk.workflows import compare
 
 parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
 parser.add_argument("--system", default="tip3p-2nm", help="system name (alphaprk systems); default tip3p-2nm")

@@ -10,8 +10,9 @@ import pytest
 from MDAnalysis.coordinates.memory import MemoryReader
 from quick_systems import quick_system
 
-from openmm_alphaprk.analysis import ConstraintDeviation, Diffusion, analyze_run, energy_drift, oxygen_rdf
-from openmm_alphaprk.driver import run_nve
+from openmm_alphaprk.analysis import ConstraintDeviation, Diffusion, energy_drift, oxygen_rdf
+from openmm_alphaprk.runs import run_nve
+from openmm_alphaprk.workflows import analyze_run
 
 OH, HH = 0.09572, 0.15139  # nm, TIP3P's rigid geometry
 WATER = np.array([[0.0, 0.0, 0.0], [OH, 0.0, 0.0], [OH * np.cos(1.824218), OH * np.sin(1.824218), 0.0]])

@@ -10,12 +10,11 @@ import openmm.unit as unit
 import pytest
 from quick_systems import StopAt, quick_system
 
-from openmm_alphaprk import rundir
-from openmm_alphaprk.compare import compare
-from openmm_alphaprk.driver import RunFailedError, run_nve
 from openmm_alphaprk.integrators.names import UnknownIntegratorError, make_integrator, parse_integrator
-from openmm_alphaprk.rundir import RunDirectoryError
+from openmm_alphaprk.runs import RunFailedError, run_nve, rundir
+from openmm_alphaprk.runs.rundir import RunDirectoryError
 from openmm_alphaprk.systems import UnknownSystemError
+from openmm_alphaprk.workflows import compare
 
 REFERENCE_RUN = dict(
     platform="Reference", energy_interval=2, trajectory_interval=4, checkpoint_interval=10, progress=False

@@ -10,7 +10,7 @@ from conftest import REFERENCE, constraint_errors, make_context, positions_of, t
 
 from openmm_alphaprk import AlphaRattleIntegrator, RattleIntegrator
 from openmm_alphaprk.reference import angular_momentum, to_openmm_system, water_cluster
-from openmm_alphaprk.reporters import (
+from openmm_alphaprk.runs.reporters import (
     COLUMNS,
     AlphaControllerReporter,
     read_controller_csv,

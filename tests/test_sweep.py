@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from openmm_alphaprk.sweep import (
+from openmm_alphaprk.workflows.sweep import (
     ERROR_FILE,
     TABLE_FILE,
     SweepConfigError,

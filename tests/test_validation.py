@@ -311,8 +311,7 @@ def test_openmm_water_cluster_on_cpu_momenta_are_limited_by_single_precision_for
 # ------------------------------------------------------------------ OpenMM: tip3p-2nm
 @pytest.mark.slow
 def test_openmm_energy_modes_on_the_774_atom_box(tmp_path):
-    from openmm_alphaprk.driver import run_nve
-    from openmm_alphaprk.reporters import read_controller_csv
+    from openmm_alphaprk.runs import read_controller_csv, run_nve
 
     mm.Platform.getPlatformByName("CPU").setPropertyDefaultValue("Threads", "1")
     steps = 1000  # 2 ps, H every 20 fs, as on the page

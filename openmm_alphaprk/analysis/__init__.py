@@ -3,7 +3,6 @@
 from .constraints import ConstraintDeviation, system_constraints
 from .diffusion import Diffusion
 from .energy import EnergyDrift, energy_drift
-from .run import analyze_run
 from .structure import WATER_OXYGENS, oxygen_rdf
 from .vacf import VelocityAutocorrelation, band_summary, spectrum_difference
 
@@ -13,7 +12,6 @@ __all__ = [
     "Diffusion",
     "EnergyDrift",
     "VelocityAutocorrelation",
-    "analyze_run",
     "band_summary",
     "energy_drift",
     "oxygen_rdf",

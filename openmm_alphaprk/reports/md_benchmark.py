@@ -100,7 +100,7 @@ def render_page(page: str, report: dict) -> str:
 def main(argv: list[str] | None = None) -> int:
     """Run (optionally) the sweep, then write the JSON, the figures and the page's tables."""
     args = build_parser().parse_args(argv)
-    from ..sweep import load_config, run_sweep
+    from ..workflows.sweep import load_config, run_sweep
 
     config = load_config(CONFIG)
     if args.run:

@@ -37,7 +37,7 @@ def figure_energy(rows, systems: list[str]) -> str:
     """Plot H − E_ref against time, one panel per system: RMS over 0.2 ps windows, log scale."""
     import matplotlib.pyplot as plt
 
-    from .. import rundir
+    from ..runs import rundir
 
     fig, axes = plt.subplots(len(systems), 1, figsize=(8, 2.8 * len(systems)), squeeze=False)
     for ax, system in zip(axes[:, 0], systems):

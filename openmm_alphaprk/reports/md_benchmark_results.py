@@ -53,7 +53,7 @@ def load_rows(config) -> dict[tuple[str, str, float, str], dict]:
     The rows are those of the sweep table, read from the run directories, so that a
     report can be made while the sweep still runs.
     """
-    from ..sweep import cell_status
+    from ..workflows.sweep import cell_status
 
     rows = {}
     for cell in config.cells:

@@ -30,8 +30,7 @@ LONG_RUN_INTEGRATORS = ("rattle", "alpha=1/6", "energy", "energy4")
 
 def _box_run(workdir: Path, key: str, name: str, substeps: int, steps: int) -> dict:
     """Run one integrator of :data:`BOX_RUNS` on ``tip3p-2nm``; return its entry."""
-    from ..driver import run_nve
-    from ..reporters import read_controller_csv
+    from ..runs import read_controller_csv, run_nve
 
     outdir = workdir / f"tip3p-2nm-{key.replace('/', '_').replace(' ', '').replace(',', '_')}"
     summary = run_nve(
@@ -87,7 +86,7 @@ def openmm_alpha_star(workdir: Path, steps: int) -> dict:
 
 def _driver_run(prepared, workdir: Path, platform_name: str, name: str, n_steps: int, interval: int) -> dict:
     """Run ``name`` on the water cluster through the driver with an :class:`InvariantReporter`."""
-    from ..driver import run_nve
+    from ..runs import run_nve
 
     reporter = InvariantReporter(prepared.system, prepared.state, interval)
     outdir = workdir / f"cluster-{platform_name}-{name.replace('/', '_')}"

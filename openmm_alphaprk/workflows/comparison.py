@@ -8,14 +8,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-import openmm.unit as unit
-
-from . import rundir
-from ._units import to_float
-from .driver import RunSummary, run_nve, run_parameters
-from .integrators.names import IntegratorSpec, check_compatible, parse_integrator
-from .observables import VERLET_IS_LEAPFROG
-from .systems import PreparedSystem, load_definition, prepare_system
+from ..integrators.names import IntegratorSpec, check_compatible, parse_integrator
+from ..observables import VERLET_IS_LEAPFROG
+from ..runs import RunOptions, RunSummary, run_nve, rundir
+from ..systems import PreparedSystem, load_definition, prepare_system
 
 DEFAULT_SYSTEM = "tip3p-3nm"
 DEFAULT_INTEGRATORS = ("rattle", "energy", "energy4", "alpha4=0", "verlet")
@@ -40,23 +36,15 @@ def compare(
     system: str | PreparedSystem = DEFAULT_SYSTEM,
     integrators: Sequence[str | IntegratorSpec] = DEFAULT_INTEGRATORS,
     output: str | os.PathLike = "alphaprk-compare",
+    options: RunOptions | None = None,
     *,
-    steps: int = 1000,
-    timestep: unit.Quantity | float = 0.002,
-    platform: str = "CPU",
-    precision: str | None = None,
-    constraint_tolerance: float = 1e-8,
-    energy_interval: int = 10,
-    trajectory_interval: int = 100,
-    checkpoint_interval: int = 500,
-    cache_dir: str | os.PathLike | None = None,
     plot: bool = True,
-    progress: bool = True,
+    **keywords,
 ) -> Comparison:
     """Run every integrator from the same start state and compare energy conservation and cost.
 
     Each integrator gets its own run directory ``output/<integrator>`` (see
-    :func:`~openmm_alphaprk.driver.run_nve`; an interrupted comparison resumes where it
+    :func:`~openmm_alphaprk.runs.run_nve`; an interrupted comparison resumes where it
     stopped). Writes ``comparison.json``, the table, and ``energy_residuals.png``
     (H − E_ref against time for all integrators).
 
@@ -69,20 +57,11 @@ def compare(
         Integrator names (``rattle``, ``verlet``, ``energy``, ``alpha=<number>``).
     output
         Folder of the comparison.
-    steps
-        Steps per integrator.
-    timestep
-        Step size (Quantity, or number in ps).
-    platform, precision
-        OpenMM platform and its precision, as for :func:`~openmm_alphaprk.driver.run_nve`.
-    constraint_tolerance
-        Relative constraint tolerance of every integrator.
-    energy_interval, trajectory_interval, checkpoint_interval
-        Steps between energy rows, DCD frames and checkpoints.
-    cache_dir
-        Cache of equilibrated systems.
-    progress
-        Show progress bars.
+    options, **keywords
+        The options of every run, a :class:`~openmm_alphaprk.runs.RunOptions` and/or
+        its fields as keywords (``steps`` per integrator, ``timestep``, ``platform``,
+        ``precision``, ``constraint_tolerance``, intervals, ``cache_dir``, ``progress``),
+        as for :func:`~openmm_alphaprk.runs.run_nve`.
     plot
         Write the figure (needs matplotlib).
 
@@ -91,16 +70,27 @@ def compare(
     UnknownSystemError, UnknownIntegratorError, IncompatibleSystemError, RunDirectoryError
         Before any run starts.
     """
-    specs = [parse_integrator(name) for name in integrators]
-    if not specs:
-        raise ValueError("give at least one integrator to compare.")
-    names = [spec.name for spec in specs]
-    if len(set(names)) != len(names):
-        raise ValueError(f"integrators are repeated: {names}; give each once.")
-    timestep_ps = to_float(timestep, unit.picoseconds, "timestep", positive=True)
+    specs = _integrators(integrators)
+    options = RunOptions.build(options, **keywords)
     if not isinstance(system, PreparedSystem):
         load_definition(system)  # an unknown name fails before anything else
     output = Path(output)
+    _check_output(output, plot)
+    prepared = _prepare(system, specs, options)
+    directories = {spec.name: output / run_directory_name(spec) for spec in specs}
+    for spec in specs:  # refuse a directory holding different runs before running anything
+        rundir.check_run_directory(directories[spec.name], rundir.run_parameters(prepared, spec, options))
+    output.mkdir(parents=True, exist_ok=True)
+    summaries = [run_nve(prepared, spec, directories[spec.name], options) for spec in specs]
+    header = _header(prepared, summaries[0], options)
+    table = format_table(summaries, header, any(spec.kind == "verlet" for spec in specs))
+    figure = _figure(directories, output, header) if plot else None
+    _write(output, prepared.name, header, directories, summaries, figure, table)
+    return Comparison(prepared.name, summaries, table, output, figure)
+
+
+def _check_output(output: Path, plot: bool) -> None:
+    """Refuse a folder that holds something else than a comparison; with ``plot``, check for matplotlib."""
     if output.exists() and any(output.iterdir()) and not (output / COMPARISON_FILE).is_file():
         raise rundir.RunDirectoryError(
             f"output directory {output} is not empty and holds no {COMPARISON_FILE}: it is not a comparison "
@@ -110,63 +100,77 @@ def compare(
         from .plots import pyplot
 
         pyplot()  # fail now, not after the runs, if matplotlib is missing
+
+
+def _header(prepared: PreparedSystem, first: RunSummary, options: RunOptions) -> str:
+    """Return the table's and figure's title line: system, step, length, platform, sampling."""
+    steps, timestep_ps = options.steps, options.timestep_ps
+    return (
+        f"{prepared.name}: {prepared.n_atoms} atoms, {first.degrees_of_freedom} DOF, "
+        f"{timestep_ps * 1000:g} fs, {steps} steps ({steps * timestep_ps:g} ps) NVE from the same start, "
+        f"platform {first.platform}; H - E_ref sampled every {options.energy_interval} steps"
+    )
+
+
+def _integrators(integrators: Sequence[str | IntegratorSpec]) -> list[IntegratorSpec]:
+    """Parse the integrators; refuse none and repeats."""
+    specs = [parse_integrator(name) for name in integrators]
+    if not specs:
+        raise ValueError("give at least one integrator to compare.")
+    names = [spec.name for spec in specs]
+    if len(set(names)) != len(names):
+        raise ValueError(f"integrators are repeated: {names}; give each once.")
+    return specs
+
+
+def _prepare(
+    system: str | PreparedSystem, specs: list[IntegratorSpec], options: RunOptions
+) -> PreparedSystem:
+    """Build (or load) the system once, checked against every integrator."""
     prepared = (
         system
         if isinstance(system, PreparedSystem)
         else prepare_system(
             system,
-            cache_dir=cache_dir,
-            progress=progress,
+            cache_dir=options.cache_dir,
+            progress=options.progress,
             check=lambda built: [
-                check_compatible(spec, built, repr(str(system)), platform) for spec in specs
+                check_compatible(spec, built, repr(str(system)), options.platform) for spec in specs
             ],
         )
     )
     for spec in specs:
-        check_compatible(spec, prepared.system, repr(prepared.name), platform)
-    kwargs = dict(
-        steps=steps,
-        timestep=timestep_ps,
-        platform=platform,
-        precision=precision,
-        constraint_tolerance=constraint_tolerance,
-        energy_interval=energy_interval,
-        trajectory_interval=trajectory_interval,
-        checkpoint_interval=checkpoint_interval,
-        progress=progress,
-    )
-    directories = {spec.name: output / run_directory_name(spec) for spec in specs}
-    for spec in specs:  # refuse a directory holding different runs before running anything
-        parameters = run_parameters(
-            prepared,
-            spec,
-            **{k: v for k, v in kwargs.items() if k not in ("progress", "timestep")},
-            timestep_ps=timestep_ps,
-        )
-        rundir.check_run_directory(directories[spec.name], parameters)
-    output.mkdir(parents=True, exist_ok=True)
-    summaries = [run_nve(prepared, spec, directories[spec.name], **kwargs) for spec in specs]
-    header = (
-        f"{prepared.name}: {prepared.n_atoms} atoms, {summaries[0].degrees_of_freedom} DOF, "
-        f"{timestep_ps * 1000:g} fs, {steps} steps ({steps * timestep_ps:g} ps) NVE from the same start, "
-        f"platform {summaries[0].platform}; H - E_ref sampled every {energy_interval} steps"
-    )
-    table = format_table(summaries, header, any(spec.kind == "verlet" for spec in specs))
-    figure = None
-    if plot:
-        from .plots import plot_energy_residuals
+        check_compatible(spec, prepared.system, repr(prepared.name), options.platform)
+    return prepared
 
-        traces = {}
-        for spec in specs:
-            energies = rundir.read_energies(directories[spec.name] / rundir.ENERGIES_FILE)
-            traces[spec.name] = energies[:, 1], energies[:, 4] - energies[0, 4]
-        figure = Path(plot_energy_residuals(traces, output / FIGURE_FILE, header))
+
+def _figure(directories: dict[str, Path], output: Path, header: str) -> Path:
+    """Plot H − E_ref of every run against time; return the figure's path."""
+    from .plots import plot_energy_residuals
+
+    traces = {}
+    for name, directory in directories.items():
+        energies = rundir.read_energies(directory / rundir.ENERGIES_FILE)
+        traces[name] = energies[:, 1], energies[:, 4] - energies[0, 4]
+    return Path(plot_energy_residuals(traces, output / FIGURE_FILE, header))
+
+
+def _write(
+    output: Path,
+    system: str,
+    header: str,
+    directories: dict[str, Path],
+    summaries: list[RunSummary],
+    figure: Path | None,
+    table: str,
+) -> None:
+    """Write ``comparison.json`` and ``table.txt``."""
     (output / COMPARISON_FILE).write_text(
         json.dumps(
             {
-                "system": prepared.name,
+                "system": system,
                 "header": header,
-                "runs": {spec.name: str(directories[spec.name]) for spec in specs},
+                "runs": {name: str(directory) for name, directory in directories.items()},
                 "summaries": [summary.as_dict() for summary in summaries],
                 "figure": str(figure) if figure else None,
             },
@@ -175,7 +179,6 @@ def compare(
         + "\n"
     )
     (output / "table.txt").write_text(table + "\n", encoding="utf-8")
-    return Comparison(prepared.name, summaries, table, output, figure)
 
 
 def run_directory_name(spec: IntegratorSpec) -> str:

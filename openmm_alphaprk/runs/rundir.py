@@ -24,9 +24,14 @@ import os
 import re
 import struct
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from ..integrators.names import IntegratorSpec
+    from ..systems import PreparedSystem
+    from .options import RunOptions
 
 RUN_FORMAT = "openmm_alphaprk.run/1"
 PARAMETERS_FILE = "run.json"
@@ -40,12 +45,45 @@ SUMMARY_FILE = "summary.json"
 SYSTEM_FILE = "system.xml"
 TOPOLOGY_FILE = "topology.pdb"
 
+#: What a run writes as it goes; a run interrupted before its first checkpoint starts them anew.
+OUTPUT_FILES = (
+    ENERGIES_FILE,
+    CONTROLLER_FILE,
+    TRAJECTORY_FILE,
+    VELOCITIES_FILE,
+    START_STATE_FILE,
+    SUMMARY_FILE,
+)
+
 #: Parameters that may differ between invocations on the same directory.
 _MAY_DIFFER = ("steps",)
 
 
 class RunDirectoryError(ValueError):
     """Raised when an output directory holds something other than this run."""
+
+
+def run_parameters(prepared: PreparedSystem, spec: IntegratorSpec, options: RunOptions) -> dict[str, Any]:
+    """Return the parameters stored in ``run.json``; a directory with other values holds a different run.
+
+    ``velocity_interval`` and ``velocity_seed`` are stored only when set, so run
+    directories written before they existed stay valid.
+    """
+    optional = {"velocity_interval": options.velocity_interval, "velocity_seed": options.velocity_seed}
+    return {
+        "format": RUN_FORMAT,
+        "system": prepared.name,
+        "system_key": prepared.key,
+        "integrator": spec.name,
+        "timestep_ps": options.timestep_ps,
+        "steps": options.steps,
+        "platform": options.platform,
+        "precision": options.precision,
+        "constraint_tolerance": options.constraint_tolerance,
+        "energy_interval": options.energy_interval,
+        "trajectory_interval": options.trajectory_interval,
+        "checkpoint_interval": options.checkpoint_interval,
+    } | {key: value for key, value in optional.items() if value is not None}
 
 
 def check_run_directory(path: Path, parameters: dict[str, Any]) -> dict[str, Any] | None:
@@ -101,6 +139,21 @@ def read_energies(path: str | os.PathLike) -> np.ndarray:
     if data.shape[0] == 0:
         raise ValueError(f"{path} holds no energy rows.")
     return data
+
+
+def remove_outputs(path: Path) -> None:
+    """Delete the files of :data:`OUTPUT_FILES` that exist in ``path``."""
+    for name in OUTPUT_FILES:
+        (path / name).unlink(missing_ok=True)
+
+
+def cut_back(path: Path, step: int, intervals: dict[str, int]) -> None:
+    """Cut the CSV and DCD files of a run back to ``step`` (its checkpoint's) before it resumes."""
+    truncate_csv(path / ENERGIES_FILE, step)
+    truncate_csv(path / CONTROLLER_FILE, step)
+    truncate_dcd(path / TRAJECTORY_FILE, step // intervals["trajectory_interval"])
+    if "velocity_interval" in intervals:
+        truncate_dcd(path / VELOCITIES_FILE, step // intervals["velocity_interval"])
 
 
 def truncate_csv(path: Path, last_step: int) -> None:

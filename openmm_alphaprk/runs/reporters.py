@@ -1,4 +1,8 @@
-"""An OpenMM reporter for the α* controller of the energy-preserving mode."""
+"""OpenMM reporters of a run: the α* controller's diagnostics (CSV) and velocities (DCD).
+
+Both follow OpenMM's reporter protocol (``describeNextReport``/``report``) and build
+their header and each report's values in separate methods, as OpenMM's own reporters do.
+"""
 
 from __future__ import annotations
 
@@ -12,8 +16,8 @@ import numpy as np
 import openmm.app as app
 import openmm.unit as unit
 
-from .integrators import AlphaRattleIntegrator, restore_integrator
-from .integrators.controller import (
+from ..integrators import AlphaRattleIntegrator, restore_integrator
+from ..integrators.controller import (
     ALPHA,
     ALPHA_AT_BOUND,
     FELL_BACK,
@@ -23,7 +27,7 @@ from .integrators.controller import (
     STEP_FORCE_EVALUATIONS,
     TRIALS,
 )
-from .observables import alpha_percentiles
+from ..observables import alpha_percentiles
 
 #: Columns written by :class:`AlphaControllerReporter`, with their units.
 COLUMNS = (
@@ -85,16 +89,28 @@ class AlphaControllerReporter:
 
     def report(self, simulation: app.Simulation, state) -> None:
         """Append one row for the step just taken."""
+        row = self._constructReportValues(simulation, state)
+        if self._out is None:
+            self._open()
+        self.rows.append(row)
+        self._writer.writerow(row)
+        self._out.flush()
+        self._checkForErrors(row)
+
+    def _constructHeaders(self) -> list[str]:
+        """Return the CSV header: :data:`COLUMNS`."""
+        return list(COLUMNS)
+
+    def _constructReportValues(self, simulation: app.Simulation, state) -> tuple:
+        """Return the row of the step just taken, read from the integrator's global variables."""
         integrator = restore_integrator(simulation.integrator)
         if not isinstance(integrator, AlphaRattleIntegrator) or not integrator.energy_mode:
             raise TypeError(
                 "AlphaControllerReporter needs an AlphaRattleIntegrator in the energy mode "
                 "(alpha='energy'); use openmm.app.StateDataReporter for other integrators."
             )
-        if self._out is None:
-            self._open()
         get = integrator.getGlobalVariableByName
-        row = (
+        return (
             simulation.currentStep,
             state.getTime()._value
             if state is not None
@@ -108,9 +124,10 @@ class AlphaControllerReporter:
             int(get(ALPHA_AT_BOUND)),
             get(MIDPOINT_CHANGE),
         )
-        self.rows.append(row)
-        self._writer.writerow(row)
-        self._out.flush()
+
+    @staticmethod
+    def _checkForErrors(row: tuple) -> None:
+        """Fail fast when the residual is not finite."""
         if not math.isfinite(row[3]):
             raise ValueError(
                 f"Energy residual is {row[3]} at step {row[0]}: the simulation has become unstable. "
@@ -130,7 +147,7 @@ class AlphaControllerReporter:
             write_header = not self._append
         self._writer = csv.writer(self._out)
         if write_header:
-            self._writer.writerow(COLUMNS)
+            self._writer.writerow(self._constructHeaders())
 
     def summary(self, energy_tolerance: float | None = None) -> ControllerSummary:
         """Summary statistics of the rows recorded by this reporter object."""
@@ -238,25 +255,36 @@ class VelocityDCDReporter:
         return {"steps": steps, "periodic": None, "include": ["velocities"]}
 
     def report(self, simulation: app.Simulation, state) -> None:
+        """Write one frame: the State's velocities."""
+        velocities = self._constructReportValues(simulation, state)
+        if self._dcd is None:
+            self._open(simulation)
+        # Velocities (nm/ps) typed as nm: DCDFile stores them ×10, i.e. in Å/ps.
+        self._dcd.writeModel(unit.Quantity(velocities, unit.nanometers))
+        self._handle.flush()
+
+    @staticmethod
+    def _constructReportValues(simulation: app.Simulation, state) -> np.ndarray:
+        """Return the State's velocities in nm/ps, checked to be finite."""
         velocities = state.getVelocities(asNumpy=True).value_in_unit(unit.nanometers / unit.picoseconds)
         if not np.all(np.isfinite(velocities)):
             raise ValueError(
                 f"non-finite velocity at step {simulation.currentStep}: the simulation has blown up; "
                 "use a smaller step size."
             )
-        if self._dcd is None:
-            self._handle = open(self._path, "r+b" if self._append else "wb")
-            self._dcd = app.DCDFile(
-                self._handle,
-                simulation.topology,
-                simulation.integrator.getStepSize(),
-                simulation.currentStep,
-                self._interval,
-                self._append,
-            )
-        # Velocities (nm/ps) typed as nm: DCDFile stores them ×10, i.e. in Å/ps.
-        self._dcd.writeModel(unit.Quantity(velocities, unit.nanometers))
-        self._handle.flush()
+        return velocities
+
+    def _open(self, simulation: app.Simulation) -> None:
+        """Open the file and write the DCD header (or take over the header of the file appended to)."""
+        self._handle = open(self._path, "r+b" if self._append else "wb")
+        self._dcd = app.DCDFile(
+            self._handle,
+            simulation.topology,
+            simulation.integrator.getStepSize(),
+            simulation.currentStep,
+            self._interval,
+            self._append,
+        )
 
     def __del__(self):
         if self._handle is not None:

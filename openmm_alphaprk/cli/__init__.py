@@ -1,0 +1,68 @@
+"""The ``alphaprk`` command: ``systems``, ``run``, ``compare``, ``analyze`` over the library functions.
+
+- :mod:`.parser`: :func:`build_parser`, one ``_add_*_parser`` per command.
+- :mod:`.commands`: one ``cmd_*`` per command, a call of the library and its printout.
+- :mod:`.quantities`: times and lengths with units (``2fs``, ``8A``).
+
+:func:`main` runs a command and turns the errors the user can fix into one line on
+stderr (exit status 2), a run that blew up into exit status 1.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from collections.abc import Sequence
+
+import openmm as mm
+
+from ..integrators.names import IncompatibleSystemError, UnknownIntegratorError
+from ..runs.rundir import RunDirectoryError
+from ..systems import DefinitionError, UnknownSystemError
+from .commands import COMMANDS
+from .parser import build_parser
+from .quantities import QuantityError, parse_length, parse_time
+
+__all__ = ["QuantityError", "build_parser", "main", "parse_length", "parse_time"]
+
+#: Errors that are the user's to fix: reported in one line, exit status 2.
+_INPUT_ERRORS = (
+    UnknownSystemError,
+    UnknownIntegratorError,
+    IncompatibleSystemError,
+    RunDirectoryError,
+    DefinitionError,
+    QuantityError,
+    FileNotFoundError,
+    ImportError,
+    ValueError,
+    TypeError,
+)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``alphaprk`` console script."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    from ..runs import RunFailedError
+
+    if os.environ.get("ALPHAPRK_DEBUG"):  # full tracebacks
+        return COMMANDS[args.command](args)
+    try:
+        return COMMANDS[args.command](args)
+    except RunFailedError as error:
+        print(f"alphaprk {args.command}: run failed: {error}", file=sys.stderr)
+        return 1
+    except mm.OpenMMException as error:
+        print(f"alphaprk {args.command}: OpenMM error: {error}", file=sys.stderr)
+        return 1
+    except _INPUT_ERRORS as error:
+        print(f"alphaprk {args.command}: error: {error}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(
+            f"alphaprk {args.command}: interrupted; run the same command again to resume from the "
+            "last checkpoint.",
+            file=sys.stderr,
+        )
+        return 130

@@ -1,0 +1,175 @@
+"""The commands of ``alphaprk``: each turns its arguments into a library call and prints the result."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from ..integrators.names import parse_integrator
+from ..runs.options import DEFAULTS, RunOptions
+from .parser import BENCHMARKS
+from .quantities import QuantityError, parse_length, parse_time
+
+
+def _steps(args) -> tuple[int, float]:
+    timestep = parse_time(args.timestep, "--timestep")
+    if args.length is not None:
+        steps = round(parse_time(args.length, "--length") / timestep)
+        if steps < 1:
+            raise QuantityError(f"--length {args.length} is shorter than one step of {args.timestep}.")
+        return steps, timestep
+    return (args.steps or DEFAULTS.steps), timestep
+
+
+def _run_options(args) -> RunOptions:
+    """Return the :class:`~openmm_alphaprk.runs.RunOptions` of ``run`` and ``compare``."""
+    steps, timestep = _steps(args)
+    return RunOptions(
+        steps=steps,
+        timestep=timestep,
+        platform=args.platform,
+        precision=args.precision,
+        constraint_tolerance=args.constraint_tolerance,
+        energy_interval=args.energy_interval,
+        trajectory_interval=args.trajectory_interval,
+        checkpoint_interval=args.checkpoint_interval,
+        cache_dir=args.cache_dir,
+        progress=not args.quiet,
+    )
+
+
+def cmd_systems(args) -> int:
+    from ..systems import is_cached, list_systems, load_definition, prepare_system
+
+    if args.build:
+        for name in args.build:
+            prepared = prepare_system(name, cache_dir=args.cache_dir, progress=not args.quiet)
+            print(f"{prepared.name}: {prepared.n_atoms} atoms, cached in {prepared.path}")
+        return 0
+    print(f"{'system':<14} {'cached':<7} description")
+    for name in list_systems():
+        definition = load_definition(name)
+        cached = "yes" if is_cached(definition, args.cache_dir) else "no"
+        print(f"{name:<14} {cached:<7} {definition.description}")
+    return 0
+
+
+def cmd_run(args) -> int:
+    from ..runs import run_nve
+    from ..workflows.comparison import run_directory_name
+
+    spec = parse_integrator(args.integrator)
+    options = _run_options(args)
+    output = args.output or f"alphaprk-run-{args.system}-{run_directory_name(spec)}"
+    summary = run_nve(args.system, spec, output, options)
+    print(json.dumps(summary.as_dict(), indent=2))
+    print(f"run directory: {output}", file=sys.stderr)
+    return 0
+
+
+def cmd_compare(args) -> int:
+    from ..workflows.comparison import compare
+
+    for name in args.integrators:
+        parse_integrator(name)
+    options = _run_options(args)
+    output = args.output or f"alphaprk-compare-{args.system}"
+    result = compare(args.system, args.integrators, output, options, plot=not args.no_plot)
+    print(result.table)
+    print(
+        f"\nresults: {result.output / 'comparison.json'}"
+        + (f", figure: {result.figure}" if result.figure else "")
+    )
+    return 0
+
+
+def cmd_analyze(args) -> int:
+    from ..analysis import WATER_OXYGENS
+    from ..workflows.analyze import analyze_run
+
+    rdf_max = parse_length(args.rdf_max, "--rdf-max")
+    result = analyze_run(
+        args.run,
+        select=args.select or WATER_OXYGENS,
+        rdf_bins=args.rdf_bins,
+        rdf_max=rdf_max,
+        plot=not args.no_plot,
+        progress=not args.quiet,
+    )
+    _print_analysis(result)
+    print(f"written: {args.run}/analysis.json" + "".join(f", {path}" for path in result["figures"].values()))
+    return 0
+
+
+def _print_analysis(result: dict) -> None:
+    """Print one line per analysis of :func:`~openmm_alphaprk.workflows.analyze_run`, then the notes."""
+    energy = result["energy"]
+    print(
+        f"energy: drift {energy['drift_per_dof']:.3e} kJ/mol/ns per DOF, RMS |H - E_ref| "
+        f"{energy['rms_residual']:.4f} kJ/mol, max {energy['max_abs_residual']:.4f} kJ/mol "
+        f"({energy['samples']} samples over {energy['duration_ps']:g} ps)"
+    )
+    if "constraints" in result:
+        c = result["constraints"]
+        print(
+            f"constraints: max relative deviation {c['overall_max_relative_deviation']:.2e} "
+            f"over {c['frames']} frames"
+        )
+    if "rdf" in result:
+        r = result["rdf"]
+        print(f"O-O RDF: first peak g = {r['first_peak_g']:.2f} at r = {r['first_peak_r_angstrom']:.2f} A")
+    if "msd" in result:
+        m = result["msd"]
+        print(
+            f"MSD: D = {m['diffusion_coefficient_1e-5_cm2_per_s']:.3g} x 1e-5 cm^2/s "
+            f"(fit over lags {m['fit_window_ps']} ps)"
+        )
+    for note in result["notes"]:
+        print(f"note: {note}")
+
+
+def cmd_sweep(args) -> int:
+    from ..workflows.sweep import cell_status, load_config, run_sweep
+
+    config = load_config(args.config)
+    if args.list:
+        root = Path(args.output) if args.output else config.output
+        for cell in config.cells:
+            row = cell_status(cell, root / cell.name)
+            state = "to run" if row is None else row["status"]
+            print(f"{cell.name:60s} {cell.steps:8d} steps  {state}")
+        print(f"{len(config.cells)} cells -> {root}")
+        return 0
+    result = run_sweep(
+        config,
+        output=args.output,
+        scheduler=args.scheduler,
+        n_workers=args.workers,
+        retry_failed=args.retry_failed,
+        cache_dir=args.cache_dir,
+        progress=not args.quiet,
+    )
+    print(
+        f"{len(result.rows)} cells: {len(result.ran)} run now, {len(result.skipped)} finished before, "
+        f"{len(result.failed)} failed -> {result.table}"
+    )
+    return 0  # failed cells are results (a step-size scan expects some); they are in the table
+
+
+def cmd_bench(args: argparse.Namespace) -> int:
+    """Run a benchmark's own command line with the remaining options."""
+    import importlib
+
+    return importlib.import_module(BENCHMARKS[args.benchmark]).main(args.options)
+
+
+COMMANDS = {
+    "systems": cmd_systems,
+    "run": cmd_run,
+    "compare": cmd_compare,
+    "analyze": cmd_analyze,
+    "sweep": cmd_sweep,
+    "bench": cmd_bench,
+}

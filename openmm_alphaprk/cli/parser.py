@@ -1,0 +1,243 @@
+"""The argument parser of ``alphaprk``: one ``_add_*_parser`` per command."""
+
+from __future__ import annotations
+
+import argparse
+import re
+
+from ..integrators.names import INTEGRATOR_HELP
+from ..runs.options import DEFAULTS, PRECISIONS
+from ..workflows.comparison import DEFAULT_INTEGRATORS, DEFAULT_SYSTEM, VERLET_NOTE
+from .quantities import positive
+
+#: ``alphaprk bench`` subcommands: the module whose ``main(argv)`` runs each.
+BENCHMARKS = {
+    "cost": "openmm_alphaprk.benchmarks.cost",
+    "energy": "openmm_alphaprk.benchmarks.energy_command",
+}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Build the argument parser of ``alphaprk`` (all subcommands)."""
+    parser = argparse.ArgumentParser(
+        prog="alphaprk",
+        description=(
+            "NVE molecular dynamics with alpha-RATTLE (openmm_alphaprk): ready-made systems, runs that "
+            "write energies/trajectory/checkpoints as they go and resume, side-by-side comparisons of "
+            "integrators, and MDAnalysis analyses. Units: energies kJ/mol, drift kJ/mol/ns per degree of "
+            "freedom, times with explicit units on input (2fs, 10ps)."
+        ),
+        epilog=f"Integrators: {INTEGRATOR_HELP}.",
+    )
+    sub = parser.add_subparsers(
+        dest="command", required=True, metavar="{systems,run,compare,analyze,sweep,bench}"
+    )
+    _add_systems_parser(sub)
+    _add_run_parser(sub)
+    _add_compare_parser(sub)
+    _add_analyze_parser(sub)
+    _add_sweep_parser(sub)
+    return parser
+
+
+def _add_systems_parser(sub) -> None:
+    systems = sub.add_parser(
+        "systems",
+        help="list the ready-made systems (and build/cache them)",
+        description="List the system definitions; with --build, build and cache the named ones now.",
+    )
+    systems.add_argument(
+        "--build", nargs="+", metavar="SYSTEM", default=None, help="build and cache these systems now"
+    )
+    _add_common(systems)
+
+
+def _add_run_parser(sub) -> None:
+    run = sub.add_parser(
+        "run",
+        help="one NVE run of a system with one integrator",
+        description=(
+            "Run NVE dynamics and write run.json, energies.csv (step, time ps, potential/kinetic/total "
+            "energy kJ/mol, temperature K), controller.csv (energy mode: alpha*, H - E_ref per step), "
+            "trajectory.dcd (unwrapped), checkpoint.chk and summary.json to the output directory. "
+            "Running the same command again resumes an interrupted run; a directory holding a different "
+            "run is refused."
+        ),
+        epilog=f"Integrators: {INTEGRATOR_HELP}.",
+    )
+    run.add_argument("system", help="system name (see `alphaprk systems`) or path to a .toml definition")
+    run.add_argument("integrator", help="rattle, verlet, energy or alpha=<number> (see below)")
+    run.add_argument(
+        "-o", "--output", default=None, help="run directory (default alphaprk-run-<system>-<integrator>)"
+    )
+    _add_run_options(run)
+
+
+def _add_compare_parser(sub) -> None:
+    comp = sub.add_parser(
+        "compare",
+        help="several integrators from the same start: table and H - E_ref figure",
+        description=(
+            "Run every integrator from the same equilibrated state (one run directory each, resumable), "
+            "print a table (drift kJ/mol/ns per DOF from a linear fit, RMS and max |H - E_ref| kJ/mol, "
+            "max relative constraint error, force evaluations per step, ns/day) and write "
+            "comparison.json, table.txt and energy_residuals.png. " + VERLET_NOTE
+        ),
+        epilog=f"Integrators: {INTEGRATOR_HELP}.",
+    )
+    comp.add_argument(
+        "system", nargs="?", default=DEFAULT_SYSTEM, help=f"system name (default {DEFAULT_SYSTEM})"
+    )
+    comp.add_argument(
+        "-i",
+        "--integrators",
+        nargs="+",
+        default=list(DEFAULT_INTEGRATORS),
+        help=f"integrators to compare (default: {' '.join(DEFAULT_INTEGRATORS)})",
+    )
+    comp.add_argument(
+        "-o", "--output", default=None, help="output folder (default alphaprk-compare-<system>)"
+    )
+    comp.add_argument("--no-plot", action="store_true", help="skip the figure (no matplotlib needed)")
+    _add_run_options(comp)
+
+
+def _add_analyze_parser(sub) -> None:
+    analyze = sub.add_parser(
+        "analyze",
+        help="energy drift, constraint deviation, O-O RDF and MSD of a run directory",
+        description=(
+            "Analyse a run directory with MDAnalysis: energy drift fit (kJ/mol/ns per DOF), constraint "
+            "length deviation per frame (relative), O-O radial distribution function (InterRDF, periodic "
+            "systems), mean-squared displacement and diffusion coefficient (EinsteinMSD, 1e-5 cm^2/s). "
+            "Writes analysis.json and energy.png, constraint_deviation.png, rdf_OO.png, msd.png."
+        ),
+    )
+    analyze.add_argument("run", help="a run directory (or one integrator's folder of a comparison)")
+    analyze.add_argument(
+        "--select",
+        default=None,
+        help="MDAnalysis selection for RDF and MSD (default: water oxygens)",
+    )
+    analyze.add_argument("--rdf-bins", type=positive, default=100, help="RDF histogram bins (default 100)")
+    analyze.add_argument(
+        "--rdf-max",
+        default="8A",
+        help="largest RDF distance with a unit: 8A (default), 0.8nm; capped at half the box",
+    )
+    analyze.add_argument("--no-plot", action="store_true", help="skip the figures (no matplotlib needed)")
+    analyze.add_argument("--quiet", action="store_true", help="no progress bars")
+
+
+def _add_sweep_parser(sub) -> None:
+    sweep = sub.add_parser(
+        "sweep",
+        help="run a grid of NVE runs (systems x integrators x step sizes x alpha x seeds) with dask",
+        description=(
+            "Expand the grids of a sweep configuration (TOML, see openmm_alphaprk.workflows.sweep) into "
+            "independent runs, execute them on a dask.distributed cluster (a local one by default) and "
+            "collect their summaries into sweep.csv in the output folder, rewritten as cells finish. Failed "
+            "cells are recorded with their error; running the same command again skips finished cells and "
+            "resumes interrupted ones. Needs the sweep extra: pip install 'openmm-alphaprk[sweep]'."
+        ),
+    )
+    sweep.add_argument("config", help="sweep configuration file (TOML)")
+    sweep.add_argument("--output", default=None, help="output folder (default: the configuration's `output`)")
+    sweep.add_argument(
+        "--scheduler", default=None, help="address of a running dask scheduler, e.g. tcp://host:8786"
+    )
+    sweep.add_argument(
+        "--workers",
+        type=positive,
+        default=None,
+        help="workers of the local cluster (default: the configuration's, else 1)",
+    )
+    sweep.add_argument("--retry-failed", action="store_true", help="run failed cells again")
+    sweep.add_argument("--list", action="store_true", help="list the cells and their state, run nothing")
+    _add_bench_parser(sub)
+    _add_common(sweep)
+
+
+def _add_bench_parser(sub) -> None:
+    bench = sub.add_parser(
+        "bench",
+        help="benchmarks against RATTLE: `bench cost` (time per step), `bench energy` (H - E_ref)",
+        description=(
+            "cost: time per step and per force evaluation of each integrator against RattleIntegrator, "
+            "interleaved rounds on one water box. energy: H - E_ref of the energy modes against RATTLE from "
+            "the same start, at the same step and at equal cost; --system tip3p-3nm villin runs the "
+            "package's systems in one run. `alphaprk bench cost --help` and `alphaprk bench energy --help` "
+            "list their options."
+        ),
+    )
+    bench.add_argument("benchmark", choices=BENCHMARKS, help="which benchmark")
+    bench.add_argument(
+        "options", nargs=argparse.REMAINDER, help="the benchmark's own options (see its --help)"
+    )
+
+
+def _add_run_options(parser: argparse.ArgumentParser) -> None:
+    """Add the options of :class:`~openmm_alphaprk.runs.RunOptions`, with its defaults."""
+    length = parser.add_mutually_exclusive_group()
+    length.add_argument(
+        "--steps", type=positive, default=None, help=f"number of MD steps (default {DEFAULTS.steps})"
+    )
+    length.add_argument(
+        "--length", default=None, help="simulated time instead of --steps, with a unit: 10ps, 0.5ns"
+    )
+    timestep = f"{DEFAULTS.timestep_ps * 1000:g}fs"
+    parser.add_argument(
+        "--timestep",
+        default=timestep,
+        help=f"step size with a unit: {timestep} (default), 0.001ps; fs, ps or ns",
+    )
+    parser.add_argument(
+        "--platform",
+        default=DEFAULTS.platform,
+        help=f"OpenMM platform: {DEFAULTS.platform} (default), Reference (double precision, slow), "
+        "CUDA, OpenCL",
+    )
+    parser.add_argument(
+        "--precision",
+        choices=PRECISIONS,
+        default=DEFAULTS.precision,
+        help="floating-point precision for CUDA/OpenCL (default: the platform's own)",
+    )
+    tolerance = re.sub(r"e([-+])0*(\d)", r"e\1\2", f"{DEFAULTS.constraint_tolerance:g}")  # 1e-08 -> 1e-8
+    parser.add_argument(
+        "--constraint-tolerance",
+        type=float,
+        default=DEFAULTS.constraint_tolerance,
+        help="relative tolerance of SHAKE/SETTLE/CCMA and velocity constraints "
+        f"(dimensionless; default {tolerance})",
+    )
+    parser.add_argument(
+        "--energy-interval",
+        type=positive,
+        default=DEFAULTS.energy_interval,
+        help=f"steps between rows of energies.csv (default {DEFAULTS.energy_interval}; "
+        "each costs an extra energy evaluation)",
+    )
+    parser.add_argument(
+        "--trajectory-interval",
+        type=positive,
+        default=DEFAULTS.trajectory_interval,
+        help=f"steps between DCD frames (default {DEFAULTS.trajectory_interval})",
+    )
+    parser.add_argument(
+        "--checkpoint-interval",
+        type=positive,
+        default=DEFAULTS.checkpoint_interval,
+        help="steps between checkpoints; an interrupted run resumes from the last one "
+        f"(default {DEFAULTS.checkpoint_interval})",
+    )
+    _add_common(parser)
+
+
+def _add_common(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--cache-dir",
+        default=None,
+        help="cache of equilibrated systems (default $ALPHAPRK_CACHE_DIR, else ~/.cache/openmm_alphaprk)",
+    )
+    parser.add_argument("--quiet", action="store_true", help="no progress bars")

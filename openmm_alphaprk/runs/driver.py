@@ -1,0 +1,274 @@
+"""NVE runs of a prepared system with a chosen integrator, written as they go and resumable.
+
+:func:`run_nve` writes a run directory (see :mod:`openmm_alphaprk.runs.rundir`) with
+OpenMM's own reporters — ``StateDataReporter`` (energies CSV), ``DCDReporter``,
+``CheckpointReporter`` — plus :class:`~openmm_alphaprk.runs.AlphaControllerReporter`
+for the energy mode, and a JSON summary at the end. Calling it again on the same
+directory with the same settings resumes from the last checkpoint (or reports the
+finished run); other settings are refused.
+
+A run is prepared (options, platform, system, directory), simulated (from its start
+state or its last checkpoint, with the reporters) and written (``summary.json``).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import openmm as mm
+import openmm.app as app
+import openmm.unit as unit
+from tqdm import tqdm
+
+from ..integrators.names import IntegratorSpec, check_compatible, make_integrator, parse_integrator
+from ..systems import PreparedSystem, prepare_system
+from . import rundir
+from .options import RunOptions
+from .reporters import AlphaControllerReporter, VelocityDCDReporter
+from .summary import RunSummary, summarize
+
+
+class RunFailedError(RuntimeError):
+    """Raised when a run stops on a NaN or a failed step; the output up to then is kept."""
+
+
+@dataclass
+class _Run:
+    """A prepared run: its system, integrator, options, directory and whether it resumes."""
+
+    output: Path
+    prepared: PreparedSystem
+    spec: IntegratorSpec
+    options: RunOptions
+    platform: mm.Platform
+    properties: dict[str, str]
+    resume: bool
+
+
+def run_nve(
+    system: str | PreparedSystem,
+    integrator: str | IntegratorSpec,
+    output: str | os.PathLike,
+    options: RunOptions | None = None,
+    *,
+    extra_reporters: list | None = None,
+    **keywords,
+) -> RunSummary:
+    """Run NVE dynamics and write energies, trajectory, checkpoints and a summary to ``output``.
+
+    Parameters
+    ----------
+    system
+        A system name (``alphaprk systems``) or a :class:`~openmm_alphaprk.systems.PreparedSystem`.
+    integrator
+        ``rattle``, ``verlet``, ``energy`` or ``alpha=<number>``; see
+        :mod:`openmm_alphaprk.integrators.names`.
+    output
+        Run directory; created if missing. If it holds this run (same settings except
+        ``steps``), the run resumes from its last checkpoint, or is extended to ``steps``.
+    options, **keywords
+        A :class:`~openmm_alphaprk.runs.RunOptions` (steps, timestep, platform,
+        precision, constraint_tolerance, intervals, velocity_seed, cpu_threads,
+        cache_dir, progress), and/or its fields as keywords (they replace the
+        ``options``' own), e.g. ``steps=2000, timestep=0.001``.
+    extra_reporters
+        More OpenMM reporters, called after the run's own ones at each step.
+
+    Returns
+    -------
+    RunSummary
+        Also written to ``summary.json``.
+
+    Raises
+    ------
+    UnknownSystemError, UnknownIntegratorError, IncompatibleSystemError, RunDirectoryError
+        Before any work, for an unknown system or integrator, a system the integrator
+        cannot run (virtual sites), or a directory that holds a different run.
+    ValueError, TypeError
+        For bad numbers or units.
+    RunFailedError
+        If the run blows up (NaN energy, failed midpoint iteration); what was written stays.
+    """
+    spec = parse_integrator(integrator)
+    run = prepare_run(system, spec, Path(output), RunOptions.build(options, **keywords))
+    simulation = _simulation(run)
+    start_step = _restore(simulation, run) if run.resume else _start(simulation, run)
+    summary_file = run.output / rundir.SUMMARY_FILE
+    if start_step >= run.options.steps and summary_file.is_file():
+        return RunSummary(**json.loads(summary_file.read_text(encoding="utf-8")))
+    summary_file.unlink(missing_ok=True)  # an extended run is not complete until it ends
+    wall = simulate(simulation, run, start_step, extra_reporters)
+    return write_summary(simulation, run, wall, start_step)
+
+
+def prepare_run(
+    system: str | PreparedSystem, spec: IntegratorSpec, output: Path, options: RunOptions
+) -> _Run:
+    """Check the platform, build (or load) the system, and set up the run directory.
+
+    Everything that can be refused is refused here, before the directory is written.
+    """
+    platform, properties = options.openmm_platform()
+    prepared = _prepare_system(system, spec, options)
+    parameters = rundir.run_parameters(prepared, spec, options)
+    stored = rundir.check_run_directory(output, parameters)
+    resume = stored is not None and (output / rundir.CHECKPOINT_FILE).is_file()
+    if stored is not None and not resume:  # interrupted before its first checkpoint: start again
+        rundir.remove_outputs(output)
+    output.mkdir(parents=True, exist_ok=True)
+    rundir.write_parameters(output, parameters)
+    if not resume:
+        (output / rundir.SYSTEM_FILE).write_text(
+            mm.XmlSerializer.serialize(prepared.system), encoding="utf-8"
+        )
+        with open(output / rundir.TOPOLOGY_FILE, "w") as handle:
+            app.PDBFile.writeFile(prepared.topology, prepared.state.getPositions(), handle, keepIds=True)
+    return _Run(output, prepared, spec, options, platform, properties, resume)
+
+
+def _prepare_system(
+    system: str | PreparedSystem, spec: IntegratorSpec, options: RunOptions
+) -> PreparedSystem:
+    """Return the prepared system, checked against the integrator (unknown names fail before a build)."""
+    if isinstance(system, PreparedSystem):
+        check_compatible(spec, system.system, repr(system.name), options.platform)
+        return system
+    from ..systems import load_definition
+
+    load_definition(system)  # unknown names fail here, before a build
+    return prepare_system(
+        system,
+        cache_dir=options.cache_dir,
+        progress=options.progress,
+        check=lambda built: check_compatible(spec, built, repr(str(system)), options.platform),
+    )
+
+
+def _simulation(run: _Run) -> app.Simulation:
+    """Return the run's Simulation: its integrator, System and platform."""
+    integrator = make_integrator(run.spec, run.options.timestep_ps, run.options.constraint_tolerance)
+    return app.Simulation(
+        run.prepared.topology, run.prepared.system, integrator, run.platform, run.properties
+    )
+
+
+def _restore(simulation: app.Simulation, run: _Run) -> int:
+    """Load the last checkpoint and cut the files back to it; return its step."""
+    simulation.loadCheckpoint(str(run.output / rundir.CHECKPOINT_FILE))
+    start_step = simulation.currentStep
+    rundir.cut_back(run.output, start_step, run.options.intervals)
+    return start_step
+
+
+def _start(simulation: app.Simulation, run: _Run) -> int:
+    """Set the start state (new velocities with ``velocity_seed``, kept in ``start_state.xml``); return 0."""
+    context = simulation.context
+    context.setState(run.prepared.state)
+    seed = run.options.velocity_seed
+    if seed is not None:
+        kelvin = float(run.prepared.definition.equilibration["temperature_K"])
+        context.setVelocitiesToTemperature(kelvin * unit.kelvin, seed)
+        context.applyVelocityConstraints(run.options.constraint_tolerance)
+        start = context.getState(getPositions=True, getVelocities=True)
+        (run.output / rundir.START_STATE_FILE).write_text(mm.XmlSerializer.serialize(start), encoding="utf-8")
+    context.setStepCount(0)
+    context.setTime(0.0)
+    return 0
+
+
+def simulate(simulation: app.Simulation, run: _Run, start_step: int, extra_reporters: list | None) -> float:
+    """Attach the reporters, step to the end and checkpoint the last step; return the wall time (s)."""
+    reporters = _reporters(run.output, run.spec, run.options.intervals, append=run.resume)
+    if not run.resume:  # the start state's energy row: E_ref
+        reporters[0].report(simulation, simulation.context.getState(getEnergy=True))
+    simulation.reporters.extend(reporters)
+    simulation.reporters.extend(extra_reporters or [])
+    wall = _advance(simulation, run, start_step)
+    if simulation.currentStep % run.options.checkpoint_interval != 0:
+        simulation.saveCheckpoint(str(run.output / rundir.CHECKPOINT_FILE))
+    return wall
+
+
+def _reporters(output: Path, spec: IntegratorSpec, intervals: dict, append: bool) -> list:
+    """Energies first, checkpoint last: a checkpoint at step k follows the rows and frame of step k."""
+    reporters: list = [
+        app.StateDataReporter(
+            str(output / rundir.ENERGIES_FILE),
+            intervals["energy_interval"],
+            step=True,
+            time=True,
+            potentialEnergy=True,
+            kineticEnergy=True,
+            totalEnergy=True,
+            temperature=True,
+            append=append,
+        )
+    ]
+    if spec.kind == "energy":
+        reporters.append(AlphaControllerReporter(str(output / rundir.CONTROLLER_FILE), 1, append=append))
+    reporters.append(
+        app.DCDReporter(
+            str(output / rundir.TRAJECTORY_FILE),
+            intervals["trajectory_interval"],
+            append=append,
+            enforcePeriodicBox=False,
+        )
+    )
+    if "velocity_interval" in intervals:
+        reporters.append(
+            VelocityDCDReporter(
+                str(output / rundir.VELOCITIES_FILE), intervals["velocity_interval"], append=append
+            )
+        )
+    reporters.append(
+        app.CheckpointReporter(str(output / rundir.CHECKPOINT_FILE), intervals["checkpoint_interval"])
+    )
+    return reporters
+
+
+def _advance(simulation: app.Simulation, run: _Run, start_step: int) -> float:
+    """Step to ``steps`` in chunks of ``energy_interval`` (progress bar); return the wall time (s)."""
+    steps, chunk, output = run.options.steps, run.options.energy_interval, run.output
+    name = type(simulation.integrator).__name__
+    started = time.perf_counter()
+    with tqdm(
+        total=steps,
+        initial=start_step,
+        desc=f"NVE {output.name}",
+        unit="step",
+        disable=not run.options.progress,
+        file=sys.stderr,
+        mininterval=1.0,
+    ) as bar:
+        while simulation.currentStep < steps:
+            n = min(chunk - simulation.currentStep % chunk, steps - simulation.currentStep)
+            try:
+                simulation.step(n)
+            except (ValueError, ArithmeticError, RuntimeError, mm.OpenMMException) as error:
+                raise RunFailedError(
+                    f"run in {output} stopped near step {simulation.currentStep} with {name}: {error} "
+                    "The output up to then is kept; the last checkpoint is in "
+                    f"{output / rundir.CHECKPOINT_FILE}."
+                ) from error
+            bar.update(n)
+    return time.perf_counter() - started
+
+
+def write_summary(simulation: app.Simulation, run: _Run, wall_seconds: float, start_step: int) -> RunSummary:
+    """Summarize the run, write ``summary.json`` and return the summary."""
+    summary = summarize(
+        run.output,
+        run.prepared,
+        simulation.integrator,
+        simulation,
+        run.spec,
+        wall_seconds,
+        simulation.currentStep - start_step,
+    )
+    (run.output / rundir.SUMMARY_FILE).write_text(json.dumps(summary.as_dict(), indent=2) + "\n")
+    return summary

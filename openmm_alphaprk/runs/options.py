@@ -1,0 +1,161 @@
+"""The options of an NVE run, their defaults and their checks, in one place.
+
+:class:`RunOptions` is what :func:`~openmm_alphaprk.runs.run_nve`,
+:func:`~openmm_alphaprk.workflows.compare`, the sweeps and the ``alphaprk`` command
+take; each builds one instead of spelling the options out again.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, replace
+
+import openmm as mm
+import openmm.unit as unit
+
+from .._units import to_dimensionless, to_float
+from ..observables import positive_int
+
+PRECISIONS = ("single", "mixed", "double")
+
+#: Options counted in steps (a sweep gives them as times, ``<name>_fs``).
+INTERVALS = ("energy_interval", "trajectory_interval", "checkpoint_interval", "velocity_interval")
+#: Options a sweep's configuration passes through under their own names.
+PLATFORM_OPTIONS = ("platform", "precision", "cpu_threads", "constraint_tolerance")
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    """How an NVE run is made: its length, step, platform, intervals and start velocities.
+
+    Built from keywords, checked and normalized on construction (``timestep`` becomes a
+    float in ps, ``constraint_tolerance`` a float, counts ints); the platform, its
+    precision and ``cpu_threads`` are checked by :meth:`openmm_platform`, when the run
+    needs the platform.
+
+    Attributes
+    ----------
+    steps
+        Total number of steps of the run.
+    timestep
+        Step size: a Quantity, or a number in ps (default 0.002 ps = 2 fs).
+    platform
+        OpenMM platform name (``CPU``, ``Reference``, ``CUDA``, ``OpenCL``).
+    precision
+        ``single``, ``mixed`` or ``double`` for platforms with a Precision property
+        (CUDA, OpenCL); None keeps the platform's default. Reference is double; CPU
+        has no setting.
+    constraint_tolerance
+        Relative tolerance of SHAKE/SETTLE/CCMA and the velocity constraints.
+    energy_interval, trajectory_interval, checkpoint_interval
+        Steps between energy rows, DCD frames and checkpoints. Energies cost one extra
+        force evaluation each on most platforms; the energy mode's controller CSV is
+        written every step (free).
+    velocity_interval
+        Steps between frames of ``velocities.dcd`` (velocities in Å/ps stored as DCD
+        coordinates, see :class:`~openmm_alphaprk.runs.VelocityDCDReporter`); None
+        (default) writes none.
+    velocity_seed
+        None (default): start from the prepared state's velocities. An integer: draw new
+        Maxwell–Boltzmann velocities at the definition's temperature with this seed
+        (constrained components removed), for independent runs from the same structure.
+    cpu_threads
+        Threads of the CPU platform (default: OpenMM's choice, all cores); not part of
+        the run's identity.
+    cache_dir
+        Cache of equilibrated systems (default: see :func:`~openmm_alphaprk.systems.default_cache_dir`).
+    progress
+        Show progress bars on stderr.
+
+    Raises
+    ------
+    ValueError, TypeError
+        For bad numbers or units.
+    """
+
+    steps: int = 1000
+    timestep: unit.Quantity | float = 0.002
+    platform: str = "CPU"
+    precision: str | None = None
+    constraint_tolerance: float = 1e-8
+    energy_interval: int = 10
+    trajectory_interval: int = 100
+    checkpoint_interval: int = 500
+    velocity_interval: int | None = None
+    velocity_seed: int | None = None
+    cpu_threads: int | None = None
+    cache_dir: str | os.PathLike | None = None
+    progress: bool = True
+
+    def __post_init__(self) -> None:
+        self._set("timestep", to_float(self.timestep, unit.picoseconds, "timestep", positive=True))
+        self._set("steps", positive_int(self.steps, "steps"))
+        for name in INTERVALS:
+            value = getattr(self, name)
+            if value is not None or name != "velocity_interval":
+                self._set(name, positive_int(value, name))
+        seed = self.velocity_seed
+        if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int)):
+            raise ValueError(f"velocity_seed must be an integer or None, got {seed!r}.")
+        tolerance = to_dimensionless(self.constraint_tolerance, "constraint_tolerance", positive=True)
+        self._set("constraint_tolerance", tolerance)
+
+    def _set(self, name: str, value: object) -> None:
+        object.__setattr__(self, name, value)
+
+    @classmethod
+    def build(cls, options: RunOptions | None = None, **keywords) -> RunOptions:
+        """Return ``options`` (default: the defaults) with ``keywords`` replacing its fields."""
+        if options is None:
+            return cls(**keywords)
+        return replace(options, **keywords) if keywords else options
+
+    @property
+    def timestep_ps(self) -> float:
+        """The step size in ps."""
+        return self.timestep
+
+    @property
+    def intervals(self) -> dict[str, int]:
+        """The intervals that are set, by name (``velocity_interval`` only when given)."""
+        values = {name: getattr(self, name) for name in INTERVALS}
+        return {name: value for name, value in values.items() if value is not None}
+
+    def openmm_platform(self) -> tuple[mm.Platform, dict[str, str]]:
+        """Return the OpenMM Platform and its properties (precision, threads), checked.
+
+        Raises
+        ------
+        ValueError
+            For a platform not available here, a precision the platform has no setting
+            for, or ``cpu_threads`` on another platform than CPU.
+        """
+        platform, properties = _platform(self.platform, self.precision)
+        if self.cpu_threads is not None:
+            if self.platform != "CPU":
+                raise ValueError(
+                    f"cpu_threads applies to the CPU platform only, not {self.platform}; leave it unset."
+                )
+            properties["Threads"] = str(positive_int(self.cpu_threads, "cpu_threads"))
+        return platform, properties
+
+
+#: The defaults, for the command line and the sweeps.
+DEFAULTS = RunOptions()
+
+
+def _platform(name: str, precision: str | None) -> tuple[mm.Platform, dict]:
+    names = [mm.Platform.getPlatform(i).getName() for i in range(mm.Platform.getNumPlatforms())]
+    if name not in names:
+        raise ValueError(f"unknown OpenMM platform {name!r}; available here: {', '.join(names)}.")
+    platform = mm.Platform.getPlatformByName(name)
+    if precision is None:
+        return platform, {}
+    if precision not in PRECISIONS:
+        raise ValueError(f"precision must be one of {PRECISIONS}, got {precision!r}.")
+    if "Precision" not in platform.getPropertyNames():
+        raise ValueError(
+            f"platform {name} has no precision setting (Reference computes in double, CPU in single with "
+            "some double accumulation); leave precision unset, or use CUDA/OpenCL."
+        )
+    return platform, {"Precision": precision}

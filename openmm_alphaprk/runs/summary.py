@@ -1,0 +1,164 @@
+"""The summary of a run (``summary.json``): energy conservation, constraints, cost, invariants."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+import openmm as mm
+import openmm.app as app
+import openmm.unit as unit
+
+from ..analysis.energy import EnergyDrift, energy_drift
+from ..integrators import StepProgram
+from ..integrators.names import IntegratorSpec
+from ..observables import (
+    VERLET_IS_LEAPFROG,
+    degrees_of_freedom,
+    masses,
+    momenta,
+    system_constraint_errors,
+)
+from ..systems import PreparedSystem
+from . import rundir
+from .reporters import read_controller_csv, summarize_controller
+
+
+@dataclass
+class RunSummary:
+    """What ``summary.json`` holds (energies kJ/mol, drift kJ/mol/ns per degree of freedom)."""
+
+    system: str
+    integrator: str
+    n_atoms: int
+    degrees_of_freedom: int
+    timestep_fs: float
+    steps: int
+    simulated_ps: float
+    platform: str
+    e_ref: float
+    drift_per_dof: float
+    rms_residual: float
+    max_abs_residual: float
+    energy_samples: int
+    max_relative_constraint_error: float
+    max_constraint_velocity_error: float
+    ns_per_day: float
+    wall_seconds: float
+    steps_this_call: int
+    force_evaluations_per_step: float
+    velocity_verlet: bool
+    controller: dict = field(default_factory=dict)
+    momentum_change: dict = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+def summarize(
+    output: Path,
+    prepared: PreparedSystem,
+    integrator: mm.Integrator,
+    simulation: app.Simulation,
+    spec: IntegratorSpec,
+    wall_seconds: float,
+    steps_this_call: int,
+) -> RunSummary:
+    """Summary statistics from the files of the run and the final state of its context."""
+    dof = degrees_of_freedom(prepared.system)
+    drift = _energy_fit(output, dof)
+    timestep_ps = integrator.getStepSize().value_in_unit(unit.picoseconds)
+    state = simulation.context.getState(getPositions=True, getVelocities=True)
+    position_error, velocity_error = system_constraint_errors(
+        prepared.system,
+        state.getPositions(asNumpy=True).value_in_unit(unit.nanometers),
+        state.getVelocities(asNumpy=True).value_in_unit(unit.nanometers / unit.picoseconds),
+    )
+    momentum_change = {}
+    if not prepared.system.usesPeriodicBoundaryConditions():  # isolated: P and L are invariants
+        momentum_change = _momentum_change(prepared, state, output)
+    evaluations = integrator.force_evaluations_per_step if isinstance(integrator, StepProgram) else 1.0
+    simulated_ns = steps_this_call * timestep_ps / 1000.0
+    return RunSummary(
+        system=prepared.name,
+        integrator=spec.name,
+        n_atoms=prepared.n_atoms,
+        degrees_of_freedom=dof,
+        timestep_fs=timestep_ps * 1000.0,
+        steps=simulation.currentStep,
+        simulated_ps=simulation.currentStep * timestep_ps,
+        platform=simulation.context.getPlatform().getName(),
+        e_ref=drift.e_ref,
+        drift_per_dof=drift.drift_per_dof,
+        rms_residual=drift.rms_residual,
+        max_abs_residual=drift.max_abs_residual,
+        energy_samples=drift.samples - 1,
+        max_relative_constraint_error=position_error,
+        max_constraint_velocity_error=velocity_error,
+        ns_per_day=simulated_ns / (wall_seconds / 86400.0) if wall_seconds > 0 else float("nan"),
+        wall_seconds=wall_seconds,
+        steps_this_call=steps_this_call,
+        force_evaluations_per_step=float(evaluations),
+        velocity_verlet=spec.velocity_verlet,
+        controller=_controller(output, spec),
+        momentum_change=momentum_change,
+        notes=_notes(spec),
+    )
+
+
+def _energy_fit(output: Path, dof: int) -> EnergyDrift:
+    """Return the drift fit of the run's ``energies.csv`` (NaN statistics with only the start row)."""
+    energies = rundir.read_energies(output / rundir.ENERGIES_FILE)
+    if len(energies) >= 2:
+        return energy_drift(energies[:, 1], energies[:, 4], dof)
+    # fewer steps than energy_interval: only the start row
+    return EnergyDrift(energies[0, 4], 1, 0.0, *(float("nan"),) * 4)
+
+
+def _controller(output: Path, spec: IntegratorSpec) -> dict:
+    """Return the energy mode's controller statistics from ``controller.csv``; empty for other integrators."""
+    if spec.kind != "energy":
+        return {}
+    return summarize_controller(read_controller_csv(output / rundir.CONTROLLER_FILE)).as_dict()
+
+
+def _notes(spec: IntegratorSpec) -> list[str]:
+    """Return the caveats of the integrator (leapfrog velocities)."""
+    if spec.velocity_verlet:
+        return []
+    return [
+        VERLET_IS_LEAPFROG + " Its velocities are half-step velocities, so the velocity-constraint "
+        "error is not meaningful."
+    ]
+
+
+def _state_momenta(system: mm.System, state: mm.State) -> tuple[np.ndarray, np.ndarray]:
+    """Linear and angular momentum of a State (see :func:`~openmm_alphaprk.observables.momenta`)."""
+    return momenta(
+        masses(system),
+        state.getPositions(asNumpy=True).value_in_unit(unit.nanometers),
+        state.getVelocities(asNumpy=True).value_in_unit(unit.nanometers / unit.picoseconds),
+    )
+
+
+def _momentum_change(prepared: PreparedSystem, final: mm.State, output: Path) -> dict:
+    """Max component of the change of linear and angular momentum from the start state to ``final``.
+
+    The start state is the prepared one, or the run's ``start_state.xml`` when its
+    velocities were drawn anew (``velocity_seed``).
+    """
+    start_file = output / rundir.START_STATE_FILE
+    start = (
+        mm.XmlSerializer.deserialize(start_file.read_text(encoding="utf-8"))
+        if start_file.is_file()
+        else prepared.state
+    )
+    p0, l0 = _state_momenta(prepared.system, start)
+    p1, l1 = _state_momenta(prepared.system, final)
+    return {
+        "linear_amu_nm_per_ps": float(np.abs(p1 - p0).max()),
+        "angular_amu_nm2_per_ps": float(np.abs(l1 - l0).max()),
+        "angular_start_amu_nm2_per_ps": float(np.abs(l0).max()),
+    }
