@@ -3,6 +3,7 @@
 import json
 
 from openmm_alphaprk.benchmarks.cost import main
+from openmm_alphaprk.integrators.names import label
 
 
 def test_benchmark_command_prints_and_writes_the_table(tmp_path, capsys):
@@ -10,10 +11,10 @@ def test_benchmark_command_prints_and_writes_the_table(tmp_path, capsys):
     args = "--box 1.6 --cutoff 0.7 --steps 3 --rounds 1 --energy-steps 3 --equilibration-steps 20"
     assert main([*args.split(), "--json", str(out)]) == 0
     printed = capsys.readouterr().out
-    assert "AlphaRattle a=1/6" in printed and "time ratio" in printed
+    assert label("alpha=1/6") in printed and "time ratio" in printed
     rows = {row["name"]: row for row in json.loads(out.read_text(encoding="utf-8"))["rows"]}
-    assert rows["VerletIntegrator"]["time_ratio"] == 1.0
-    assert rows["RattleIntegrator"]["force_evaluations_per_step"] == 1.0
-    assert rows["AlphaRattle a=0"]["force_evaluations_per_step"] == 1.0
-    assert rows["AlphaRattle a=1/2"]["force_evaluations_per_step"] > 2.0
+    assert rows[label("verlet")]["time_ratio"] == 1.0
+    assert rows[label("rattle")]["force_evaluations_per_step"] == 1.0
+    assert rows[label("alpha=0")]["force_evaluations_per_step"] == 1.0
+    assert rows[label("alpha=1/2")]["force_evaluations_per_step"] > 2.0
     assert all(row["energy_rms"] >= 0 for row in rows.values())

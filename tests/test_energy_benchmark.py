@@ -7,6 +7,9 @@ import pytest
 from openmm_alphaprk.benchmarks import energy_command as energy_benchmark
 from openmm_alphaprk.benchmarks.energy import EnergyRow, ratios_to_rattle
 from openmm_alphaprk.benchmarks.energy_command import main
+from openmm_alphaprk.integrators.names import label
+
+RATTLE, T0, E4 = label("rattle"), label("alpha4=0"), label("energy4")
 
 
 def _row(name: str, rms: float, evals: float) -> EnergyRow:
@@ -14,36 +17,30 @@ def _row(name: str, rms: float, evals: float) -> EnergyRow:
 
 
 def test_ratios_against_rattle_at_the_same_step_and_at_equal_cost():
-    rows = [_row("RATTLE", 1.0, 1), _row("α-RATTLE-4 energy", 0.02, 7.2), _row("RATTLE h/7", 0.05, 7)]
-    rows.append(_row("α-RATTLE-4 α=0", 0.1, 3))
+    rows = [_row(RATTLE, 1.0, 1), _row(E4, 0.02, 7.2), _row(f"{RATTLE} h/7", 0.05, 7)]
+    rows.append(_row(T0, 0.1, 3))
     ratios = ratios_to_rattle(rows)
-    assert ratios["α-RATTLE-4 energy"] == pytest.approx(
-        {"rms_vs_rattle": 50.0, "rms_vs_rattle_equal_cost": 2.5}
-    )
-    assert ratios["α-RATTLE-4 α=0"] == pytest.approx(
-        {"rms_vs_rattle": 10.0}
-    )  # 3 evaluations: no equal-cost row
-    assert "RATTLE" not in ratios and "RATTLE h/7" not in ratios
+    assert ratios[E4] == pytest.approx({"rms_vs_rattle": 50.0, "rms_vs_rattle_equal_cost": 2.5})
+    assert ratios[T0] == pytest.approx({"rms_vs_rattle": 10.0})  # 3 evaluations: no equal-cost row
+    assert RATTLE not in ratios and f"{RATTLE} h/7" not in ratios
 
 
 def test_a_package_system_runs_with_the_ratios_in_table_and_json(tmp_path, capsys, monkeypatch):
     monkeypatch.setenv("ALPHAPRK_CACHE_DIR", str(tmp_path / "cache"))
     out = tmp_path / "energy.json"
     args = ["--system", "water-cluster", "--time", "0.01", "--json", str(out)]
-    assert main([*args, "--only", "α-RATTLE-4 energy"]) == 0
+    assert main([*args, "--only", "energy4"]) == 0
     printed = capsys.readouterr().out
     assert "system water-cluster" in printed and "at equal cost" in printed
     result = json.loads(out.read_text(encoding="utf-8"))["water-cluster"]
     rows = {row["name"]: row for row in result["rows"]}
-    k = round(rows["α-RATTLE-4 energy"]["force_evaluations_per_step"])
-    assert list(rows) == ["RATTLE", "α-RATTLE-4 energy", f"RATTLE h/{k}"]
+    k = round(rows[E4]["force_evaluations_per_step"])
+    assert list(rows) == [RATTLE, E4, f"{RATTLE} h/{k}"]
     assert all(row["steps"] == 5 for row in rows.values())
-    ratio = result["ratios"]["α-RATTLE-4 energy"]
-    assert ratio["rms_vs_rattle"] == pytest.approx(
-        rows["RATTLE"]["rms_residual"] / rows["α-RATTLE-4 energy"]["rms_residual"]
-    )
+    ratio = result["ratios"][E4]
+    assert ratio["rms_vs_rattle"] == pytest.approx(rows[RATTLE]["rms_residual"] / rows[E4]["rms_residual"])
     assert ratio["rms_vs_rattle_equal_cost"] == pytest.approx(
-        rows[f"RATTLE h/{k}"]["rms_residual"] / rows["α-RATTLE-4 energy"]["rms_residual"]
+        rows[f"{RATTLE} h/{k}"]["rms_residual"] / rows[E4]["rms_residual"]
     )
 
 

@@ -17,11 +17,13 @@ import sys
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass
+from functools import partial
 
 import numpy as np
 import openmm as mm
 
-from ..integrators import AlphaRattleIntegrator, RattleIntegrator, StepProgram
+from ..integrators import StepProgram
+from ..integrators.names import label, make_integrator
 from ..observables import total_energy
 from ..systems import PreparedSystem, build_water_box
 
@@ -31,7 +33,7 @@ class BenchmarkRow:
     """One integrator's measurements.
 
     ``time_ratio`` is against the first row; ``ratio_per_evaluation`` is the step time
-    per force evaluation against RattleIntegrator's (NaN without that row).
+    per force evaluation against RATTLE's (NaN without that row).
     """
 
     name: str
@@ -43,26 +45,23 @@ class BenchmarkRow:
     host_syncs_per_step: float = 0.0
 
 
-def default_integrators(timestep: float) -> dict[str, Callable[[], mm.Integrator]]:
-    """Return the integrators of the core benchmark, by display name."""
-    return {
-        "VerletIntegrator": lambda: mm.VerletIntegrator(timestep),
-        "RattleIntegrator": lambda: RattleIntegrator(timestep),
-        "AlphaRattle a=0": lambda: AlphaRattleIntegrator(timestep, alpha=0.0),
-        "AlphaRattle a=1/6": lambda: AlphaRattleIntegrator(timestep, alpha=1 / 6),
-        "AlphaRattle a=1/2": lambda: AlphaRattleIntegrator(timestep, alpha=0.5),
-    }
+#: Integrator names (:mod:`openmm_alphaprk.integrators.names`) of the core benchmark; the first is
+#: the baseline of the time ratios.
+CORE = ("verlet", "rattle", "alpha=0", "alpha=1/6", "alpha=1/2")
+#: Every program: the core set, α-RATTLE-4 (α = 0 and 0.05) and both energy modes.
+ALL = (*CORE, "alpha4=0", "alpha4=0.05", "energy", "energy4")
+
+
+def default_integrators(
+    timestep: float, names: Sequence[str] = CORE
+) -> dict[str, Callable[[], mm.Integrator]]:
+    """Return the integrators ``names`` (default: the core set) by label."""
+    return {label(name): partial(make_integrator, name, timestep) for name in names}
 
 
 def all_integrators(timestep: float) -> dict[str, Callable[[], mm.Integrator]]:
     """Return the core set, α-RATTLE-4 (α = 0 and 0.05) and both energy modes: every program."""
-    return {
-        **default_integrators(timestep),
-        "AlphaRattle-4 a=0": lambda: AlphaRattleIntegrator(timestep, alpha=0.0, order=4),
-        "AlphaRattle-4 a=0.05": lambda: AlphaRattleIntegrator(timestep, alpha=0.05, order=4),
-        "energy (order 2)": lambda: AlphaRattleIntegrator(timestep, alpha="energy"),
-        "energy4": lambda: AlphaRattleIntegrator(timestep, alpha="energy", order=4),
-    }
+    return default_integrators(timestep, ALL)
 
 
 #: Integrator sets of ``--integrators``.
@@ -185,7 +184,7 @@ def _timed_rows(runs: dict, steps: int, rounds: int, progress: bool) -> list[Ben
         syncs = (_host_syncs(integrator) - syncs_before[name]) / timed
         ms = medians[name]
         rows.append(BenchmarkRow(name, ms, ms / baseline, per_step, float("nan"), host_syncs_per_step=syncs))
-    rattle = medians.get("RattleIntegrator")
+    rattle = medians.get(label("rattle"))
     for row in rows:
         if rattle:
             row.ratio_per_evaluation = row.ms_per_step / row.force_evaluations_per_step / rattle
@@ -321,7 +320,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     header = (
         f"TIP3P box {args.box} nm, {box.n_atoms} atoms, PME cutoff {args.cutoff} nm, {args.timestep} fs, "
         f"platform {args.platform}{precision}; time ratio against {rows[0].name}; "
-        f"per eval: ms/step per force evaluation against RattleIntegrator's; median of {args.rounds} rounds "
+        f"per eval: ms/step per force evaluation against RATTLE's; median of {args.rounds} rounds "
         f"x {args.steps} steps; RMS(H-E0) over {args.energy_steps} steps (VerletIntegrator's kinetic "
         "energy is its leapfrog estimate)"
     )

@@ -20,13 +20,14 @@ from __future__ import annotations
 import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 import openmm as mm
 import openmm.unit as unit
 from tqdm import tqdm
 
-from ..integrators import AlphaRattleIntegrator, RattleIntegrator
+from ..integrators.names import label, make_integrator
 from ..observables import alpha_percentiles, degrees_of_freedom, drift_per_dof, total_energy
 from ..systems import PreparedSystem
 from .cost import (
@@ -63,29 +64,31 @@ class IntegratorSpec:
     substeps: int = 1
 
 
-#: Name of the row whose force evaluations per step set k for the equal-cost RATTLE row.
-EQUAL_COST_REFERENCE = "α-RATTLE-4 energy"
+#: The rows, by integrator name (:mod:`openmm_alphaprk.integrators.names`); the first is the baseline.
+INTEGRATOR_NAMES = ("rattle", "energy", "alpha4=0", "energy4")
+#: Label of the row whose force evaluations per step set k for the equal-cost RATTLE row.
+EQUAL_COST_REFERENCE = label("energy4")
 
 
-def default_integrators(timestep: float) -> dict[str, IntegratorSpec]:
-    """RATTLE (the baseline), both energy modes and α-RATTLE-4 at α = 0.
+def default_integrators(
+    timestep: float, names: Sequence[str] = INTEGRATOR_NAMES
+) -> dict[str, IntegratorSpec]:
+    """RATTLE (the baseline), both energy modes and α-RATTLE-4 at α = 0, by label.
 
     The equal-cost row (RATTLE at h/k, k = α-RATTLE-4's mean force evaluations per
     step) is added by :func:`run_energy_benchmark` once k is measured.
     """
-    return {
-        "RATTLE": IntegratorSpec(lambda: RattleIntegrator(timestep)),
-        "α-RATTLE energy": IntegratorSpec(lambda: AlphaRattleIntegrator(timestep, alpha="energy")),
-        "α-RATTLE-4 α=0": IntegratorSpec(lambda: AlphaRattleIntegrator(timestep, alpha=0.0, order=4)),
-        EQUAL_COST_REFERENCE: IntegratorSpec(
-            lambda: AlphaRattleIntegrator(timestep, alpha="energy", order=4)
-        ),
-    }
+    return {label(name): IntegratorSpec(partial(make_integrator, name, timestep)) for name in names}
+
+
+def equal_cost_label(k: int | str) -> str:
+    """Return the label of the equal-cost row, ``RATTLE h/k``."""
+    return f"{label('rattle')} h/{k}"
 
 
 def equal_cost_rattle(timestep: float, k: int) -> IntegratorSpec:
     """RATTLE at h/k, k sub-steps per benchmark step: the same force evaluations as k per step."""
-    return IntegratorSpec(lambda: RattleIntegrator(timestep / k), substeps=k)
+    return IntegratorSpec(partial(make_integrator, "rattle", timestep / k), substeps=k)
 
 
 def _run_one(
@@ -220,7 +223,7 @@ def _run_rows(box: PreparedSystem, integrators: dict, equal_cost: bool, run: dic
         if equal_cost and name == EQUAL_COST_REFERENCE and row.blew_up_at_step is None:
             k = max(1, int(round(row.force_evaluations_per_step)))
             timestep = integrator.getStepSize().value_in_unit(unit.picoseconds)
-            equal_name = f"RATTLE h/{k}"
+            equal_name = equal_cost_label(k)
             integrators[equal_name] = equal_cost_rattle(timestep, k)
             names.append(equal_name)
     return rows, traces, runs
@@ -299,8 +302,8 @@ def ratios_to_rattle(rows: Sequence[EnergyRow]) -> dict[str, dict[str, float]]:
     / the row's, given for the rows whose evaluations per step round to that k.
     """
     by_name = {row.name: row for row in rows}
-    rattle = by_name.get("RATTLE")
-    equal = next((row for row in rows if row.name.startswith("RATTLE h/")), None)
+    rattle = by_name.get(label("rattle"))
+    equal = next((row for row in rows if row.name.startswith(equal_cost_label(""))), None)
     ratios = {}
     for row in rows:
         if rattle is None or row is rattle or row is equal or not row.rms_residual > 0:

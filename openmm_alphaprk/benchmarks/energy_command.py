@@ -10,15 +10,16 @@ import json
 import sys
 from collections.abc import Sequence
 from dataclasses import asdict
+from functools import partial
 
 import numpy as np
 
-from ..integrators import AlphaRattleIntegrator, RattleIntegrator
+from ..integrators.names import label, make_integrator
 from ..observables import degrees_of_freedom
 from ..systems import PreparedSystem, build_water_box, list_systems, prepare_system
 from .cost import add_box_arguments, build_platform, platform_properties
 from .energy import (
-    EQUAL_COST_REFERENCE,
+    INTEGRATOR_NAMES,
     EnergyRow,
     default_integrators,
     largest_stable_step,
@@ -89,7 +90,7 @@ def _parser() -> argparse.ArgumentParser:
         "--only",
         nargs="*",
         default=None,
-        help="run only these integrators (names as in the table; RATTLE always)",
+        help="run only these integrators, by name (energy, alpha4=0, energy4; rattle always runs)",
     )
     parser.add_argument(
         "--equilibration-steps", type=int, default=1000, help="2 fs Langevin steps first (default 1000)"
@@ -126,10 +127,9 @@ def _check_arguments(parser: argparse.ArgumentParser, args: argparse.Namespace) 
     if args.sample_every < 1:
         parser.error("--sample-every must be a positive integer")
     if args.only:
-        unknown = set(args.only) - set(default_integrators(0.002))
+        unknown = set(args.only) - set(INTEGRATOR_NAMES)
         if unknown:
-            known = list(default_integrators(0.002))
-            parser.error(f"unknown integrator(s) {sorted(unknown)}; choose from {known}")
+            parser.error(f"unknown integrator(s) {sorted(unknown)}; choose from {list(INTEGRATOR_NAMES)}")
     if args.system:
         if len(set(args.system)) < len(args.system):
             parser.error(f"--system: a system named twice in {args.system}")
@@ -168,19 +168,18 @@ def _benchmark_starts(args: argparse.Namespace) -> list[tuple[PreparedSystem, st
 
 
 def _scan(box: PreparedSystem, integrators: dict, args: argparse.Namespace) -> dict:
-    makers = {
-        "RATTLE": lambda h: RattleIntegrator(h),
-        "α-RATTLE energy": lambda h: AlphaRattleIntegrator(h, alpha="energy"),
-        "α-RATTLE-4 α=0": lambda h: AlphaRattleIntegrator(h, alpha=0.0, order=4),
-        EQUAL_COST_REFERENCE: lambda h: AlphaRattleIntegrator(h, alpha="energy", order=4),
-    }
     scan = {}
     print("\nlargest stable step (1 ps per step size):")
-    for name, make in makers.items():
+    for integrator_name in INTEGRATOR_NAMES:
+        name = label(integrator_name)
         if name not in integrators:
             continue
         largest, outcomes = largest_stable_step(
-            box, make, args.scan, platform=args.platform, properties=platform_properties(args)
+            box,
+            partial(make_integrator, integrator_name),
+            args.scan,
+            platform=args.platform,
+            properties=platform_properties(args),
         )
         scan[name] = {"largest_fs": largest, "outcomes": {str(k): v for k, v in outcomes.items()}}
         detail = "; ".join(f"{h:g} fs {text}" for h, text in outcomes.items())
@@ -191,9 +190,8 @@ def _scan(box: PreparedSystem, integrators: dict, args: argparse.Namespace) -> d
 def _benchmark_one(box: PreparedSystem, description: str, args: argparse.Namespace) -> tuple[dict, dict]:
     """Run the rows on one start state, print the table; return the JSON result and the traces."""
     timestep = args.timestep / 1000.0
-    integrators = default_integrators(timestep)
-    if args.only:
-        integrators = {k: v for k, v in integrators.items() if k == "RATTLE" or k in args.only}
+    names = [name for name in INTEGRATOR_NAMES if name == "rattle" or not args.only or name in args.only]
+    integrators = default_integrators(timestep, names)
     rows, traces = run_energy_benchmark(
         box,
         integrators,

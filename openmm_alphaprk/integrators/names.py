@@ -158,6 +158,29 @@ def parse_integrator(text: str | IntegratorSpec) -> IntegratorSpec:
     )
 
 
+#: Display labels of the names without a number (tables, figures, benchmarks, reports).
+_LABELS = {
+    "rattle": "RATTLE",
+    "verlet": "VerletIntegrator",
+    "energy": "α-RATTLE energy mode",
+    "energy4": "α-RATTLE-4 energy mode",
+}
+
+
+def label(spec: str | IntegratorSpec) -> str:
+    """Return the display label of an integrator name: ``alpha=1/6`` → ``α-RATTLE α = 1/6``.
+
+    The one set of labels the benchmarks, reports and figures use (``RATTLE``,
+    ``VerletIntegrator``, ``α-RATTLE α = x``, ``α-RATTLE-4 α = x``, ``α-RATTLE energy
+    mode``, ``α-RATTLE-4 energy mode``); ``x`` is written as given (fractions kept).
+    """
+    spec = parse_integrator(spec)
+    if spec.kind != "alpha":
+        return _LABELS[spec.name]
+    family = "α-RATTLE-4" if spec.order == 4 else "α-RATTLE"
+    return f"{family} α = {spec.name.partition('=')[2]}"
+
+
 def make_integrator(
     spec: str | IntegratorSpec, timestep: unit.Quantity | float, constraint_tolerance: float = 1e-8
 ) -> mm.Integrator:

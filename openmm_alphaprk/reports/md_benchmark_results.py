@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..integrators.names import label as integrator_label
+
 ROOT = Path(__file__).resolve().parents[2]
 CONFIG = ROOT / "docs" / "sweeps" / "md_benchmark.toml"
 PAGE = ROOT / "docs" / "benchmarks.md"
@@ -29,13 +31,10 @@ ENERGY_ROWS = (
     ("energy4", 2.0),
 )
 REFERENCE = ("rattle", 0.5)  # small-step dynamics the others are compared with
+#: The integrators the report shows, with their labels from the one vocabulary.
 LABELS = {
-    "rattle": "RATTLE",
-    "verlet": "VerletIntegrator",
-    "alpha=1/6": "α-RATTLE α = 1/6",
-    "alpha4=0": "α-RATTLE-4 α = 0",
-    "energy": "α-RATTLE energy mode",
-    "energy4": "α-RATTLE-4 energy mode",
+    name: integrator_label(name)
+    for name in ("rattle", "verlet", "alpha=1/6", "alpha4=0", "energy", "energy4")
 }
 #: A scan cell counts as stable if it finished and max|H − E_ref| per DOF stayed below this (kJ/mol).
 STABLE_MAX_PER_DOF = 0.05
