@@ -1,0 +1,111 @@
+"""The package's layout: dependencies run one way, modules and functions stay small.
+
+Rooms, bottom to top: shared foundations (units, platforms, smooth forces, start
+checks, observables) → integrators (step programs) → systems, analysis and the NumPy
+reference → runs → workflows and benchmarks → reports and the CLI. A module may
+import from its own room or a lower one; benchmarks are imported only by reports and
+the CLI, reports by nothing.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+import openmm_alphaprk
+
+PACKAGE = Path(openmm_alphaprk.__file__).parent
+LAYERS = {
+    "_units": 0,
+    "platforms": 0,
+    "smooth_forces": 0,
+    "start_blowup": 0,
+    "observables": 0,
+    "integrators": 1,
+    "__init__": 1,  # the public API: the integrators and the precondition helpers
+    "systems": 2,
+    "analysis": 2,
+    "reference": 2,
+    "runs": 3,
+    "workflows": 4,
+    "benchmarks": 4,
+    "reports": 5,
+    "cli": 5,
+    "__main__": 6,
+}
+#: Functions allowed over the limit, and why.
+LONG_FUNCTIONS = {
+    # the NumPy reference step: a 40-line numpydoc docstring over a 33-line body
+    "reference/step.py:alpha_rattle_step",
+}
+
+
+def _room(path: Path) -> str:
+    return path.relative_to(PACKAGE).parts[0].removesuffix(".py")
+
+
+def _imported_rooms(path: Path, source: str | None = None):
+    package = list(path.relative_to(PACKAGE.parent).with_suffix("").parts)[:-1]
+    source = path.read_text(encoding="utf-8") if source is None else source
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.ImportFrom):
+            if node.level:
+                module = package[: len(package) - node.level + 1] + (node.module or "").split(".")
+            elif (node.module or "").split(".")[0] == "openmm_alphaprk":
+                module = node.module.split(".")
+            else:
+                continue
+            module = [part for part in module if part]
+            targets = module[1:2] or [alias.name for alias in node.names]
+            yield from (target if target in LAYERS else "__init__" for target in targets)
+        elif isinstance(node, ast.Import):
+            for alias in node.names:
+                if alias.name.startswith("openmm_alphaprk."):
+                    yield alias.name.split(".")[1]
+
+
+MODULES = sorted(PACKAGE.rglob("*.py"))
+
+
+def test_every_room_has_a_layer():
+    assert {_room(path) for path in MODULES} <= set(LAYERS)
+
+
+@pytest.mark.parametrize("path", MODULES, ids=lambda p: str(p.relative_to(PACKAGE)))
+def test_imports_point_down(path):
+    room = _room(path)
+    for target in set(_imported_rooms(path)) - {room}:
+        assert LAYERS[target] <= LAYERS[room], f"{room} imports {target}, a room above it"
+        if target == "benchmarks":
+            assert room in ("reports", "cli"), f"{room} imports a benchmark module"
+        assert target != "reports", f"{room} imports a report module"
+
+
+@pytest.mark.parametrize("path", MODULES, ids=lambda p: str(p.relative_to(PACKAGE)))
+def test_modules_and_functions_are_small(path):
+    text = path.read_text(encoding="utf-8")
+    assert len(text.splitlines()) <= 400
+    name = path.relative_to(PACKAGE).as_posix()
+    for node in ast.walk(ast.parse(text)):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            length = node.end_lineno - node.lineno + 1
+            assert length <= 60 or f"{name}:{node.name}" in LONG_FUNCTIONS, f"{node.name}: {length} lines"
+
+
+def test_the_import_walker_resolves_relative_and_absolute_imports():
+    """An upward import in a step-program module would be seen (and fail the test above)."""
+    probe = PACKAGE / "integrators" / "probe.py"
+    source = (
+        "from ..runs import run_nve\nfrom .. import benchmarks\nfrom .base import StepProgram\n"
+        "from openmm_alphaprk.workflows import compare\nfrom openmm_alphaprk import make_smooth\n"
+    )
+    assert set(_imported_rooms(probe, source)) == {
+        "runs",
+        "benchmarks",
+        "integrators",
+        "workflows",
+        "__init__",
+    }
+    assert LAYERS["runs"] > LAYERS["integrators"]
