@@ -5,6 +5,7 @@ from .integrators import (
     MasslessParticleError,
     MidpointConvergenceError,
     RattleIntegrator,
+    TimestepUnitWarning,
     restore_integrator,
 )
 from .smooth_forces import NonSmoothForcesWarning, make_smooth, smoothness_problems
@@ -17,6 +18,7 @@ __all__ = [
     "NonSmoothForcesWarning",
     "RattleIntegrator",
     "StartBlowUpError",
+    "TimestepUnitWarning",
     "make_smooth",
     "restore_integrator",
     "smoothness_problems",

@@ -27,7 +27,7 @@ Modules, each class building on the one before:
 """
 
 from .alpha_rattle import AlphaRattleIntegrator
-from .base import KIND_VARIABLE, MasslessParticleError, StepProgram
+from .base import KIND_VARIABLE, MasslessParticleError, StepProgram, TimestepUnitWarning
 from .midpoint import MidpointConvergenceError
 from .rattle import RattleIntegrator
 from .restore import restore_integrator
@@ -39,5 +39,6 @@ __all__ = [
     "MidpointConvergenceError",
     "RattleIntegrator",
     "StepProgram",
+    "TimestepUnitWarning",
     "restore_integrator",
 ]

@@ -32,6 +32,7 @@ the same step:
 
 from __future__ import annotations
 
+import warnings
 from typing import ClassVar
 
 import openmm as mm
@@ -77,6 +78,7 @@ class StepProgram(mm.CustomIntegrator):
 
     def __init__(self, timestep: unit.Quantity | float, constraint_tolerance: float) -> None:
         step_size = to_float(timestep, unit.picoseconds, "timestep", positive=True)
+        _warn_if_plain_step_is_large(timestep, step_size)
         tolerance = to_dimensionless(constraint_tolerance, "constraint_tolerance", positive=True)
         super().__init__(step_size)
         self.setConstraintTolerance(tolerance)
@@ -277,3 +279,25 @@ class StepProgram(mm.CustomIntegrator):
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}(timestep={self.timestep})"
+
+
+#: A plain-number step (read in ps, as OpenMM does) above this many ps is probably meant in fs.
+LARGE_PLAIN_STEP_PS = 0.01
+
+
+class TimestepUnitWarning(UserWarning):
+    """A plain-number timestep above 10 fs: OpenMM reads plain numbers in picoseconds."""
+
+
+def _warn_if_plain_step_is_large(timestep: object, step_ps: float) -> None:
+    """Warn when a plain number gives a step above :data:`LARGE_PLAIN_STEP_PS` (e.g. ``2`` = 2 ps)."""
+    if unit.is_quantity(timestep) or step_ps <= LARGE_PLAIN_STEP_PS:
+        return
+    warnings.warn(
+        TimestepUnitWarning(
+            f"timestep {timestep!r} is a plain number, which OpenMM reads in picoseconds: a step of "
+            f"{step_ps * 1000:g} fs, far above the 1-4 fs of constrained MD (the run will blow up). "
+            "For 2 fs pass 2 * unit.femtoseconds or 0.002."
+        ),
+        stacklevel=4,  # this function, StepProgram.__init__, the integrator's __init__, the caller
+    )
