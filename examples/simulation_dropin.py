@@ -23,7 +23,14 @@ from openmm_alphaprk import AlphaRattleIntegrator, make_smooth
 
 parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
 parser.add_argument("--steps", type=int, default=1000, help="NVE steps of 2 fs (default 1000)")
-parser.add_argument("--alpha", default="0.1667", help="fixed alpha, or 'energy' for the energy mode")
+parser.add_argument(
+    "--alpha",
+    default="energy",
+    help="'energy' (default: α chosen every step to hold the energy) or a fixed alpha",
+)
+parser.add_argument(
+    "--order", type=int, default=4, choices=(2, 4), help="4: α-RATTLE-4 (default), 2: α-RATTLE"
+)
 parser.add_argument("--output", default="dropin-run", help="folder for the CSV, DCD and checkpoint")
 args = parser.parse_args()
 out = Path(args.output)
@@ -45,7 +52,7 @@ for change in make_smooth(system):  # smooth forces at the cutoff: the energy mo
     print(change)
 
 alpha = args.alpha if args.alpha == "energy" else float(args.alpha)
-integrator = AlphaRattleIntegrator(2 * unit.femtoseconds, alpha=alpha)  # the only α-RATTLE line
+integrator = AlphaRattleIntegrator(2 * unit.femtoseconds, alpha=alpha, order=args.order)  # the α-RATTLE line
 simulation = app.Simulation(modeller.topology, system, integrator, mm.Platform.getPlatformByName("CPU"))
 simulation.context.setPositions(modeller.positions)
 simulation.minimizeEnergy(maxIterations=200)
