@@ -4,9 +4,27 @@ from __future__ import annotations
 
 import os
 import textwrap
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 
 import numpy as np
+
+from ..integrators import names
+from ..observables import drift_per_dof
+
+#: Title of the H − E_ref figure when none is given.
+RESIDUALS_TITLE = "Energy conservation: H − E_ref per integrator (NVE from the same start)"
+#: What the panel of an integrator whose H − E_ref is not comparable step for step says.
+NOT_COMPARABLE = "not comparable step for step (leapfrog kinetic energy); drift only"
+_COLOURS = (
+    "tab:blue",
+    "tab:orange",
+    "tab:green",
+    "tab:red",
+    "tab:purple",
+    "tab:brown",
+    "tab:pink",
+    "tab:olive",
+)
 
 
 def pyplot():
@@ -24,20 +42,208 @@ def pyplot():
     return plt
 
 
-def plot_energy_residuals(
-    traces: Mapping[str, tuple[np.ndarray, np.ndarray]], path: str | os.PathLike, title: str = ""
+def run_caption(
+    system: str,
+    atoms: int,
+    timestep_fs: float,
+    steps: int,
+    platform: str,
+    *,
+    precision: str | None = None,
+    dof: int | None = None,
+    energy_interval: int | None = None,
 ) -> str:
-    """H − E_ref (kJ/mol) against time (ps), one line per integrator; returns the path."""
-    plt = pyplot()
-    fig, ax = plt.subplots(figsize=(8, 4.5), constrained_layout=True)
+    """Return a comparison figure's caption: system (atoms, DOF), step, length, platform, sampling."""
+    where = f"platform {platform}" + (f" ({precision} precision)" if precision else "")
+    sampled = f"; H − E_ref sampled every {energy_interval} steps" if energy_interval else ""
+    size = f"{atoms:,} atoms" + (f", {dof:,} DOF" if dof else "")
+    return (
+        f"System {system} ({size}); step {timestep_fs:g} fs, {steps:,} steps = "
+        f"{steps * timestep_fs / 1000:g} ps NVE; {where}{sampled}"
+    )
+
+
+def _display(name: str) -> str:
+    """Return the vocabulary's label of an integrator name; other keys as given."""
+    try:
+        return names.label(name)
+    except ValueError:
+        return name
+
+
+def _is_leapfrog(name: str) -> bool:
+    try:
+        return names.parse_integrator(name).kind == "verlet"
+    except ValueError:
+        return False
+
+
+def _fit(times: np.ndarray, residuals: np.ndarray) -> tuple[float, np.ndarray, float] | None:
+    """Drift (kJ/mol/ns, the fit of :func:`~openmm_alphaprk.observables.drift_per_dof`), line, noise σ.
+
+    σ is the RMS of H − E_ref about the fitted line (kJ/mol): the per-sample noise.
+    None with fewer than two samples.
+    """
+    if len(times) < 2:
+        return None
+    slope, intercept = np.polyfit(times, residuals, 1)
+    line = slope * times + intercept
+    return drift_per_dof(times, residuals, 1), line, float(np.sqrt(np.mean((residuals - line) ** 2)))
+
+
+def _drift_text(drift: float, dof: int | None) -> str:
+    per_dof = f" ({drift / dof:+.2e} /DOF)" if dof else ""
+    return f"drift {drift:+.3g} kJ/mol/ns{per_dof}"
+
+
+def _running_rms(times: np.ndarray, residuals: np.ndarray, window: int) -> tuple[np.ndarray, np.ndarray]:
+    """Centred running RMS of H − E_ref over ``window`` samples (valid part only)."""
+    mean_square = np.convolve(residuals**2, np.ones(window) / window, mode="valid")
+    start = (window - 1) // 2
+    return times[start : start + len(mean_square)], np.sqrt(mean_square)
+
+
+def _log_panel(ax, traces: Mapping[str, tuple[np.ndarray, np.ndarray]], colours: Mapping[str, str]) -> None:
+    """|H − E_ref| of the comparable integrators on a log axis: every sample thin, running RMS thick."""
+    floor, ceiling, smoothed = np.inf, 0.0, False
     for name, (times, residuals) in traces.items():
-        ax.plot(times, residuals, label=name, lw=1.0)
-    ax.axhline(0.0, color="k", lw=0.5)
-    ax.set_xlabel("time (ps)")
-    ax.set_ylabel("H − E_ref (kJ/mol)")
-    ax.set_title(textwrap.fill(title, 110), fontsize=8)
-    ax.legend(fontsize=8)
-    fig.savefig(path, dpi=120)
+        magnitude = np.abs(residuals)
+        rms = float(np.sqrt(np.mean(residuals**2)))
+        shown = np.where(magnitude > 0, magnitude, np.nan)
+        window = max(1, len(times) // 25)
+        thin = window >= 3
+        smoothed |= thin
+        ax.plot(
+            times,
+            shown,
+            color=colours[name],
+            lw=0.7 if thin else 1.5,
+            alpha=0.35 if thin else 1.0,
+            gid=name,
+            label="_" + name if thin else f"{_display(name)}: RMS {rms:.3g} kJ/mol",
+        )
+        if thin:
+            ax.plot(
+                *_running_rms(times, residuals, window),
+                color=colours[name],
+                lw=2.2,
+                gid=name,
+                label=f"{_display(name)}: RMS {rms:.3g} kJ/mol",
+            )
+        if rms > 0:
+            floor, ceiling = min(floor, rms / 30), max(ceiling, float(np.nanmax(shown)))
+    ax.set_yscale("log")
+    columns = min(len(traces), 3)
+    if ceiling > 0:  # room above the curves for the legend: 8 % of the height per row
+        share = 0.03 + 0.08 * -(-len(traces) // columns)
+        decades = np.log10(2 * ceiling / floor)
+        ax.set_ylim(floor, 2 * ceiling * 10 ** (decades * share / (1 - share)))
+    ax.set_xlabel("time (ps)", fontsize=10)
+    ax.set_ylabel("|H − E_ref| (kJ/mol, log)", fontsize=10)
+    how = "thin: every sample; thick: running RMS" if smoothed else "every sample"
+    ax.set_title(f"|H − E_ref| of the velocity-Verlet integrators on one log scale ({how})", fontsize=11)
+    ax.grid(True, which="major", lw=0.4, alpha=0.5)
+    legend = ax.legend(loc="upper center", ncol=max(columns, 1), fontsize=9, frameon=False)
+    legend.set_in_layout(False)
+
+
+def _with_headroom(ax, values: np.ndarray) -> None:
+    """Y-limits from the data, with room above it for a two-line legend that hides nothing."""
+    low, high = float(np.nanmin(values)), float(np.nanmax(values))
+    span = max(high - low, 0.1 * max(abs(low), abs(high)), 1e-9)
+    ax.set_ylim(low - 0.08 * span, high + 0.6 * span)
+
+
+def _linear_panel(
+    ax, name: str, trace: tuple[np.ndarray, np.ndarray], colour: str, dof: int | None, comparable: bool
+) -> None:
+    """One integrator's H − E_ref on its own linear axis, with its drift line and ±σ noise band."""
+    times, residuals = trace
+    ax.axhline(0.0, color="0.6", lw=0.6)
+    ax.plot(
+        times, residuals, color=colour, lw=1.0, alpha=1.0 if comparable else 0.5, gid=name, label="_trace"
+    )
+    values = [residuals]
+    fit = _fit(times, residuals)
+    if fit is not None:
+        drift, line, sigma = fit
+        ax.plot(times, line, color="k", ls="--", lw=1.5, gid=name, label=_drift_text(drift, dof))
+        if comparable:
+            band = f"±σ noise about the fit, σ = {sigma:.3g} kJ/mol"
+            ax.fill_between(times, line - sigma, line + sigma, color=colour, alpha=0.25, lw=0, label=band)
+            values += [line - sigma, line + sigma]
+    _with_headroom(ax, np.concatenate(values))
+    if fit is not None:
+        legend = ax.legend(loc="upper left", fontsize=9, frameon=False, borderaxespad=0.2)
+        legend.set_in_layout(False)
+    ax.set_xlabel("time (ps)", fontsize=10)
+    ax.set_ylabel("H − E_ref (kJ/mol)", fontsize=10)
+    ax.grid(True, lw=0.4, alpha=0.5)
+    if comparable:
+        ax.set_title(_display(name), fontsize=12, fontweight="bold", color=colour)
+    else:
+        ax.set_facecolor("0.95")
+        ax.set_title(f"{_display(name)}: {NOT_COMPARABLE}", fontsize=12, fontweight="bold", color="0.3")
+
+
+def build_energy_residual_figure(
+    traces: Mapping[str, tuple[np.ndarray, np.ndarray]],
+    title: str = "",
+    *,
+    caption: str = "",
+    not_comparable: Collection[str] | None = None,
+    dof: int | None = None,
+):
+    """Build the H − E_ref figure of a comparison; return the Figure (the caller saves and closes it).
+
+    ``traces`` maps integrator names (or any keys) to (time in ps, H − E_ref in kJ/mol).
+    On top, |H − E_ref| of every comparable integrator on one log axis; below, one linear
+    panel per integrator with its own y-range, its drift line (the least-squares fit of
+    :func:`~openmm_alphaprk.observables.drift_per_dof`, in kJ/mol/ns, and per DOF with
+    ``dof``) and the ±σ band of its per-sample noise about that line. The integrators of
+    ``not_comparable`` (by default ``verlet``, leapfrog) get a separate, grey panel at the
+    bottom labelled :data:`NOT_COMPARABLE`, never an axis shared with the others.
+    ``caption`` is written under the panels (system, step, platform: see :func:`run_caption`).
+    """
+    plt = pyplot()
+    apart = set(not_comparable) if not_comparable is not None else {n for n in traces if _is_leapfrog(n)}
+    comparable = {name: trace for name, trace in traces.items() if name not in apart}
+    separate = {name: trace for name, trace in traces.items() if name in apart}
+    colours = {name: _COLOURS[i % len(_COLOURS)] for i, name in enumerate(traces)}
+    columns = 2 if len(comparable) > 1 else 1
+    rows = -(-len(comparable) // columns)
+    heights = ([1.5] if comparable else []) + [1.0] * (rows + len(separate))
+    fig = plt.figure(figsize=(12, 1.0 + 2.6 * sum(heights)), layout="constrained")
+    grid = fig.add_gridspec(max(len(heights), 1), columns, height_ratios=heights or None)
+    row = 0
+    if comparable:
+        _log_panel(fig.add_subplot(grid[0, :]), comparable, colours)
+        row = 1
+    for i, (name, trace) in enumerate(comparable.items()):
+        last_alone = columns == 2 and i == len(comparable) - 1 and i % 2 == 0
+        cell = grid[row + i // columns, :] if last_alone else grid[row + i // columns, i % columns]
+        _linear_panel(fig.add_subplot(cell), name, trace, colours[name], dof, comparable=True)
+    for j, (name, trace) in enumerate(separate.items()):
+        _linear_panel(fig.add_subplot(grid[row + rows + j, :]), name, trace, "0.35", dof, comparable=False)
+    fig.suptitle(title or RESIDUALS_TITLE, fontsize=14, fontweight="bold")
+    if caption:
+        fig.supxlabel(textwrap.fill(caption, 150), fontsize=10.5)
+    return fig
+
+
+def plot_energy_residuals(
+    traces: Mapping[str, tuple[np.ndarray, np.ndarray]],
+    path: str | os.PathLike,
+    title: str = "",
+    *,
+    caption: str = "",
+    not_comparable: Collection[str] | None = None,
+    dof: int | None = None,
+) -> str:
+    """Write :func:`build_energy_residual_figure` as a PNG; returns the path."""
+    plt = pyplot()
+    fig = build_energy_residual_figure(traces, title, caption=caption, not_comparable=not_comparable, dof=dof)
+    fig.savefig(path, dpi=110)
     plt.close(fig)
     return str(path)
 
