@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import subprocess
 import sys
 import time
@@ -113,6 +114,7 @@ def test_run_then_analyze(tmp_path, cache, quick_definition):
         "--trajectory-interval",
         "5",
         "--quiet",
+        "--json",
         cwd=tmp_path,
         env_cache=cache,
     )
@@ -121,6 +123,12 @@ def test_run_then_analyze(tmp_path, cache, quick_definition):
     assert json.loads((tmp_path / "out" / "summary.json").read_text(encoding="utf-8")) == summary
     analysis = alphaprk("analyze", "out", "--rdf-max", "0.8nm", cwd=tmp_path, env_cache=cache)
     assert "O-O RDF: first peak" in analysis.stdout and "drift" in analysis.stdout
+    # issue 15: rounded fit window, labelled progress bars, why the DCD's constraint error is larger
+    assert re.search(r"fit over lags \d+(\.\d{1,3})?-\d+(\.\d{1,3})? ps\)", analysis.stdout), analysis.stdout
+    assert "constraint deviation: 100%" in analysis.stderr and "MSD (EinsteinMSD): 100%" in analysis.stderr
+    assert "float32" in analysis.stdout and "full-precision final state" in analysis.stdout
+    note = json.loads((tmp_path / "out" / "analysis.json").read_text(encoding="utf-8"))["constraints"]["note"]
+    assert "float32" in note and "full-precision final state" in note
     assert (tmp_path / "out" / "rdf_OO.png").is_file() and (tmp_path / "out" / "analysis.json").is_file()
     # the same command again: the finished run is reported, not redone
     again = alphaprk(
@@ -136,6 +144,7 @@ def test_run_then_analyze(tmp_path, cache, quick_definition):
         "--trajectory-interval",
         "5",
         "--quiet",
+        "--json",
         cwd=tmp_path,
         env_cache=cache,
     )
@@ -164,6 +173,83 @@ def test_compare_prints_the_table(tmp_path, cache, quick_definition):
     assert any(line.startswith("rattle ") for line in lines)
     assert any(line.startswith("energy ") for line in lines)
     assert "leapfrog" in result.stdout and (tmp_path / "cmp" / "energy_residuals.png").is_file()
+
+
+def test_run_prints_a_table_and_where_the_files_are(tmp_path, cache, quick_definition):
+    """Issue 15: `alphaprk run` prints compare's table (with the energy mode's alpha* line), not raw JSON."""
+    result = alphaprk(
+        "run",
+        quick_definition,
+        "energy",
+        "-o",
+        "e",
+        "--steps",
+        "4",
+        "--energy-interval",
+        "2",
+        "--quiet",
+        cwd=tmp_path,
+        env_cache=cache,
+    )
+    lines = result.stdout.splitlines()
+    assert lines[0].startswith("quick-box: 774 atoms") and "4 steps" in lines[0]
+    for column in ("integrator", "steps", "drift/DOF", "RMS|H-Eref|", "max|H-Eref|", "evals/step", "ns/day"):
+        assert column in lines[1]
+    assert re.match(r"energy +4 ", lines[3])
+    assert "alpha* median" in result.stdout and "fell back" in result.stdout
+    assert f"run directory: e, summary: {Path('e') / 'summary.json'}" in result.stdout
+    assert not result.stdout.lstrip().startswith("{")
+
+
+def test_integrator_help_lists_every_name(tmp_path, cache):
+    """Issue 15: the integrator argument's help (run) and -i's (compare) name all six forms."""
+    from openmm_alphaprk.integrators.names import VOCABULARY
+
+    run_help = alphaprk("run", "--help", cwd=tmp_path, env_cache=cache).stdout
+    compare_help = alphaprk("compare", "--help", cwd=tmp_path, env_cache=cache).stdout
+    for text, start, end in (
+        (run_help, "\n  integrator ", "\noptions:"),
+        (compare_help, "\n  -i ", "\n  -o "),
+    ):
+        block = text[text.index(start) :]
+        words = " ".join(block[: block.index(end)].split())
+        for entry in VOCABULARY:
+            assert entry.name in words, (entry.name, words)
+
+
+@pytest.mark.parametrize(
+    "args", [["run", "tip4pew-3nm", "energy"], ["run", "tip4pew-3nm", "rattle"], ["compare", "tip4pew-3nm"]]
+)
+def test_virtual_site_refusal_names_commands_that_work(tmp_path, cache, args):
+    """Issue 15: the advice is runnable: integrators are positional (run) or -i (compare), no --integrator."""
+    from openmm_alphaprk.cli import build_parser
+
+    result = alphaprk(*args, cwd=tmp_path, env_cache=cache, check=False)
+    assert result.returncode == 2 and "virtual sites" in result.stderr
+    assert "`alphaprk run tip4pew-3nm verlet`" in result.stderr
+    assert "`alphaprk compare tip4pew-3nm -i verlet`" in result.stderr
+    assert "use the integrator" not in result.stderr and "--integrator" not in result.stderr
+    commands = re.findall(r"`alphaprk ([^`]+)`", result.stderr)
+    assert len(commands) >= 3
+    for command in commands:
+        build_parser().parse_args(command.split())  # exits (fails the test) on an unknown option
+    help_text = alphaprk("run", "--help", cwd=tmp_path, env_cache=cache).stdout
+    for option in re.findall(r"(?<![\w-])--[a-z][a-z-]*", result.stderr):
+        assert option in help_text, option
+
+
+def test_compare_refuses_a_folder_of_longer_runs(tmp_path, cache):
+    """Issue 15: --steps 20 over 40-step runs is refused in one line (was: "... is not a DCD file")."""
+    common = ["compare", "water-cluster", "-i", "rattle", "-o", "cmp", "--no-plot", "--quiet"]
+    alphaprk(*common, "--steps", "40", cwd=tmp_path, env_cache=cache)
+    shorter = alphaprk(*common, "--steps", "20", cwd=tmp_path, env_cache=cache, check=False)
+    assert shorter.returncode == 2 and len(shorter.stderr.strip().splitlines()) == 1
+    assert "holds a run of 40 steps, longer than the 20 asked for" in shorter.stderr
+    assert "--steps 40" in shorter.stderr and "another output directory" in shorter.stderr
+    assert "not a DCD file" not in shorter.stderr
+    longer = alphaprk(*common, "--steps", "60", cwd=tmp_path, env_cache=cache)  # extended: the header is true
+    assert "60 steps" in longer.stdout.splitlines()[0]
+    assert any(re.match(r"rattle +60 ", line) for line in longer.stdout.splitlines())
 
 
 @pytest.mark.parametrize(

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 
-import MDAnalysis as mda
 import numpy as np
 import openmm.unit as unit
 import pytest
@@ -80,19 +79,19 @@ def test_interrupted_run_resumes_to_the_uninterrupted_result(request, tmp_path, 
     assert not (parts / rundir.SUMMARY_FILE).exists()
     # what the interrupted run left is readable, and goes past its last checkpoint (step 10)
     assert rundir.read_energies(parts / rundir.ENERGIES_FILE)[-1, 0] == 16
-    assert len(mda.Universe(str(parts / "topology.pdb"), str(parts / "trajectory.dcd")).trajectory) == 4
+    assert len(rundir.open_universe(parts).trajectory) == 4
     summary = run_nve(prepared, integrator, parts, steps=30, **REFERENCE_RUN, **extra)
     assert summary.steps == 30 and summary.steps_this_call == 20
     if "velocity_interval" in extra:  # velocities.dcd cut back to the checkpoint, then continued
-        v_whole = mda.Universe(str(whole / "topology.pdb"), str(whole / rundir.VELOCITIES_FILE))
-        v_parts = mda.Universe(str(parts / "topology.pdb"), str(parts / rundir.VELOCITIES_FILE))
+        v_whole = rundir.open_universe(whole, rundir.VELOCITIES_FILE)
+        v_parts = rundir.open_universe(parts, rundir.VELOCITIES_FILE)
         assert len(v_parts.trajectory) == len(v_whole.trajectory) == 10
         np.testing.assert_array_equal(v_parts.trajectory.timeseries(), v_whole.trajectory.timeseries())
     for name in (rundir.ENERGIES_FILE, rundir.CONTROLLER_FILE):
         if (whole / name).exists():
             assert (parts / name).read_text(encoding="utf-8") == (whole / name).read_text(encoding="utf-8")
-    u_whole = mda.Universe(str(whole / "topology.pdb"), str(whole / "trajectory.dcd"))
-    u_parts = mda.Universe(str(parts / "topology.pdb"), str(parts / "trajectory.dcd"))
+    u_whole = rundir.open_universe(whole)
+    u_parts = rundir.open_universe(parts)
     assert len(u_parts.trajectory) == len(u_whole.trajectory) == 7
     np.testing.assert_array_equal(u_parts.trajectory.timeseries(), u_whole.trajectory.timeseries())
     final = json.loads((whole / rundir.SUMMARY_FILE).read_text(encoding="utf-8"))
@@ -152,6 +151,82 @@ def test_blow_up_stops_with_a_clear_error_and_keeps_the_output(box, tmp_path):
     assert rundir.read_energies(tmp_path / rundir.ENERGIES_FILE).shape[0] >= 1
 
 
+def test_blow_up_says_where_it_stopped_and_whether_a_checkpoint_exists(box, tmp_path):
+    """Issue 15: no "near step", no checkpoint claimed that was never written."""
+    import re
+
+    import openmm as mm
+    import openmm.app as app
+
+    blow_up = dict(steps=200, timestep=0.05, energy_interval=1, progress=False)
+    with pytest.raises(RunFailedError) as none:
+        run_nve(box, "verlet", tmp_path / "none", **blow_up)
+    message = str(none.value)
+    assert re.search(r"stopped at step \d+ of 200 with VerletIntegrator", message), message
+    assert "near step" not in message and "last checkpoint" not in message
+    assert message.endswith("no checkpoint was written.")
+    assert not (tmp_path / "none" / rundir.CHECKPOINT_FILE).exists()
+    # a checkpoint every step: the message names the step of the one on disk
+    with pytest.raises(RunFailedError) as some:
+        run_nve(
+            box, "verlet", tmp_path / "some", **blow_up | {"energy_interval": 3, "checkpoint_interval": 1}
+        )
+    found = re.search(r"the last checkpoint, (.+), is of step (\d+)\.$", str(some.value))
+    assert found, str(some.value)
+    assert found.group(1) == str(tmp_path / "some" / rundir.CHECKPOINT_FILE)
+    simulation = app.Simulation(
+        box.topology, box.system, mm.VerletIntegrator(0.05), mm.Platform.getPlatformByName("CPU")
+    )
+    simulation.loadCheckpoint(found.group(1))
+    assert simulation.currentStep == int(found.group(2))
+
+
+def test_longer_run_is_refused_not_reported_as_shorter(cluster, tmp_path):
+    """Issue 15: a folder holding a longer run is refused (run_nve and compare), never cut or mislabelled."""
+    run_nve(cluster, "rattle", tmp_path / "run", steps=20, **REFERENCE_RUN)
+    summary = (tmp_path / "run" / rundir.SUMMARY_FILE).read_text(encoding="utf-8")
+    with pytest.raises(RunDirectoryError, match="holds a run of 20 steps, longer than the 10 asked for"):
+        run_nve(cluster, "rattle", tmp_path / "run", steps=10, **REFERENCE_RUN)
+    assert (tmp_path / "run" / rundir.SUMMARY_FILE).read_text(encoding="utf-8") == summary
+    assert json.loads((tmp_path / "run" / rundir.PARAMETERS_FILE).read_text(encoding="utf-8"))["steps"] == 20
+    compare(cluster, ["rattle"], tmp_path / "cmp", steps=20, plot=False, **REFERENCE_RUN)
+    with pytest.raises(RunDirectoryError, match="holds a run of 20 steps.*--steps 20"):
+        compare(cluster, ["rattle"], tmp_path / "cmp", steps=10, plot=False, **REFERENCE_RUN)
+    # interrupted after its checkpoint at step 10: asking for 5 steps is refused, 30 resumes
+    with pytest.raises(KeyboardInterrupt):
+        run_nve(cluster, "rattle", tmp_path / "cut", steps=30, extra_reporters=[StopAt(17)], **REFERENCE_RUN)
+    with pytest.raises(RunDirectoryError, match="holds a run of 10 steps, longer than the 5 asked for"):
+        run_nve(cluster, "rattle", tmp_path / "cut", steps=5, **REFERENCE_RUN)
+    assert run_nve(cluster, "rattle", tmp_path / "cut", steps=30, **REFERENCE_RUN).steps == 30
+
+
+def test_run_without_a_trajectory_frame_yet_is_extended(cluster, tmp_path):
+    """A finished run shorter than one trajectory interval (empty DCD) is extended, not refused."""
+    run = dict(REFERENCE_RUN, trajectory_interval=20)
+    run_nve(cluster, "rattle", tmp_path, steps=8, **run)
+    assert (tmp_path / rundir.TRAJECTORY_FILE).stat().st_size == 0
+    assert run_nve(cluster, "rattle", tmp_path, steps=44, **run).steps == 44
+    universe = rundir.open_universe(tmp_path)
+    assert len(universe.trajectory) == 2 and universe.trajectory.dt == pytest.approx(0.04, rel=1e-6)
+
+
+def test_reading_a_run_directory_raises_no_deprecation_warning(cluster, tmp_path):
+    """Issue 15: the package's DCD reading (open_universe, analyze_run), DeprecationWarnings as errors."""
+    import warnings
+
+    from openmm_alphaprk.workflows import analyze_run
+
+    summary = run_nve(cluster, "rattle", tmp_path, steps=16, velocity_interval=4, **REFERENCE_RUN)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DeprecationWarning)
+        assert len(rundir.open_universe(tmp_path).trajectory) == 4
+        assert len(rundir.open_universe(tmp_path, rundir.VELOCITIES_FILE).trajectory) == 4
+        result = analyze_run(tmp_path, plot=False)
+    constraints = result["constraints"]
+    assert "float32" in constraints["note"] and "full-precision final state" in constraints["note"]
+    assert constraints["run_summary_max_relative_constraint_error"] == summary.max_relative_constraint_error
+
+
 def test_periodic_box_reports_no_momentum_invariants(box, tmp_path):
     assert run_nve(box, "rattle", tmp_path, steps=2, **REFERENCE_RUN).momentum_change == {}
 
@@ -208,7 +283,7 @@ def test_velocities_file_and_seeded_start(cluster, tmp_path):
     # momenta are compared with the seeded start, not with the prepared state's velocities
     assert first.momentum_change["linear_amu_nm_per_ps"] < 1e-9
     assert not (tmp_path / "d" / rundir.START_STATE_FILE).exists()
-    u = mda.Universe(str(tmp_path / "a" / "topology.pdb"), str(tmp_path / "a" / rundir.VELOCITIES_FILE))
+    u = rundir.open_universe(tmp_path / "a", rundir.VELOCITIES_FILE)
     assert len(u.trajectory) == 3 and u.trajectory.dt == pytest.approx(0.008, rel=1e-6)
     u.trajectory[-1]  # the last frame (step 12) is the last checkpoint's velocities, ×10 (Å/ps)
     np.testing.assert_allclose(

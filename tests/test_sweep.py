@@ -196,6 +196,19 @@ def test_sweep_on_a_running_scheduler(tmp_path, cache):
     assert len(result.ran) == 4 and result.failed == []
 
 
+def test_a_longer_run_is_not_taken_for_a_finished_cell(tmp_path):
+    """A cell's folder holding a longer run is not reported as the cell (run_nve refuses it when run)."""
+    from openmm_alphaprk.workflows.sweep import cell_status
+
+    cell = parse_config(TINY, base=tmp_path).cells[0]
+    folder = tmp_path / cell.name
+    folder.mkdir()
+    (folder / "summary.json").write_text(json.dumps({"steps": 2 * cell.steps}), encoding="utf-8")
+    assert cell_status(cell, folder) is None
+    (folder / "summary.json").write_text(json.dumps({"steps": cell.steps}), encoding="utf-8")
+    assert cell_status(cell, folder)["status"] == "ok"
+
+
 def test_cli_runs_a_sweep_through_the_installed_script(tmp_path, cache):
     config = tmp_path / "tiny.toml"
     config.write_text(
@@ -215,6 +228,13 @@ def test_cli_runs_a_sweep_through_the_installed_script(tmp_path, cache):
     )
     assert done.returncode == 0, done.stderr
     assert "2 run now, 0 finished before, 0 failed" in done.stdout
+    # issue 15: the cell count once (was twice: the start line and the result line)
+    again = subprocess.run(
+        [script, "sweep", config], capture_output=True, text=True, encoding="utf-8", env=env
+    )
+    assert again.returncode == 0, again.stderr
+    assert (again.stdout + again.stderr).count("2 cells") == 1
+    assert "0 run now, 2 finished before, 0 failed" in again.stdout
     rows = read_table(tmp_path / "cli-out" / TABLE_FILE)
     energy = next(row for row in rows if row["integrator"] == "energy")
     assert energy["status"] == "ok" and float(energy["controller.force_evaluations_per_step"]) > 2

@@ -24,3 +24,13 @@ def test_plain_steps_up_to_10_fs_and_any_quantity_do_not_warn(timestep):
         warnings.simplefilter("error", TimestepUnitWarning)
         AlphaRattleIntegrator(timestep, alpha="energy", order=4)
         RattleIntegrator(timestep)
+
+
+def test_the_vocabulary_takes_plain_picoseconds_on_purpose():
+    """The CLI converts ``--timestep 20fs`` to 0.02 ps; that must not warn as if the user wrote 0.02."""
+    from openmm_alphaprk.integrators.names import make_integrator
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", TimestepUnitWarning)
+        for name in ("rattle", "alpha=1/6", "energy4", "verlet"):
+            assert make_integrator(name, 0.02).getStepSize() == 0.02 * unit.picoseconds

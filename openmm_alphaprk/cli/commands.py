@@ -58,15 +58,29 @@ def cmd_systems(args) -> int:
 
 def cmd_run(args) -> int:
     from ..runs import run_nve
-    from ..workflows.comparison import run_directory_name
+    from ..runs.rundir import SUMMARY_FILE
+    from ..workflows.comparison import format_table, run_directory_name
 
     spec = parse_integrator(args.integrator)
     options = _run_options(args)
     output = args.output or f"alphaprk-run-{args.system}-{run_directory_name(spec)}"
     summary = run_nve(args.system, spec, output, options)
-    print(json.dumps(summary.as_dict(), indent=2))
-    print(f"run directory: {output}", file=sys.stderr)
+    if args.json:
+        print(json.dumps(summary.as_dict(), indent=2))
+        print(f"run directory: {output}", file=sys.stderr)
+        return 0
+    print(format_table([summary], _run_header(summary), verlet_note=spec.kind == "verlet"))
+    print(f"\nrun directory: {output}, summary: {Path(output) / SUMMARY_FILE}")
     return 0
+
+
+def _run_header(summary) -> str:
+    """Return the title line of ``run``'s table: system, step, length, platform, energy samples."""
+    s = summary
+    return (
+        f"{s.system}: {s.n_atoms} atoms, {s.degrees_of_freedom} DOF, {s.timestep_fs:g} fs, {s.steps} steps "
+        f"({s.simulated_ps:g} ps) NVE, platform {s.platform}; H - E_ref from {s.energy_samples} energy rows"
+    )
 
 
 def cmd_compare(args) -> int:
@@ -117,14 +131,21 @@ def _print_analysis(result: dict) -> None:
             f"constraints: max relative deviation {c['overall_max_relative_deviation']:.2e} "
             f"over {c['frames']} frames"
         )
+        final = c.get("run_summary_max_relative_constraint_error")
+        value = f" ({final:.2g})" if isinstance(final, float) else ""
+        print(
+            "  (the DCD stores float32 coordinates in A: ~1e-6 relative is its resolution limit; the run "
+            f"summary's constraint error{value} is from the full-precision final state)"
+        )
     if "rdf" in result:
         r = result["rdf"]
         print(f"O-O RDF: first peak g = {r['first_peak_g']:.2f} at r = {r['first_peak_r_angstrom']:.2f} A")
     if "msd" in result:
         m = result["msd"]
+        first, last = m["fit_window_ps"]
         print(
             f"MSD: D = {m['diffusion_coefficient_1e-5_cm2_per_s']:.3g} x 1e-5 cm^2/s "
-            f"(fit over lags {m['fit_window_ps']} ps)"
+            f"(fit over lags {first:.3g}-{last:.3g} ps)"
         )
     for note in result["notes"]:
         print(f"note: {note}")

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import re
 
-from ..integrators.names import INTEGRATOR_HELP
+from ..integrators.names import INTEGRATOR_HELP, INTEGRATOR_NAMES
 from ..runs.options import DEFAULTS, PRECISIONS
 from ..workflows.comparison import DEFAULT_INTEGRATORS, DEFAULT_SYSTEM, VERLET_NOTE
 from .quantities import positive
@@ -59,16 +59,22 @@ def _add_run_parser(sub) -> None:
         description=(
             "Run NVE dynamics and write run.json, energies.csv (step, time ps, potential/kinetic/total "
             "energy kJ/mol, temperature K), controller.csv (energy mode: alpha*, H - E_ref per step), "
-            "trajectory.dcd (unwrapped), checkpoint.chk and summary.json to the output directory. "
-            "Running the same command again resumes an interrupted run; a directory holding a different "
-            "run is refused."
+            "trajectory.dcd (unwrapped), checkpoint.chk and summary.json to the output directory, and print "
+            "the summary as a table (the columns of `alphaprk compare`; --json for JSON). Running the same "
+            "command again resumes an interrupted run, or extends a finished one with a larger --steps; a "
+            "directory holding a different or a longer run is refused."
         ),
         epilog=f"Integrators: {INTEGRATOR_HELP}.",
     )
     run.add_argument("system", help="system name (see `alphaprk systems`) or path to a .toml definition")
-    run.add_argument("integrator", help="rattle, verlet, energy or alpha=<number> (see below)")
+    run.add_argument("integrator", help=f"one of {INTEGRATOR_NAMES} (see below)")
     run.add_argument(
         "-o", "--output", default=None, help="run directory (default alphaprk-run-<system>-<integrator>)"
+    )
+    run.add_argument(
+        "--json",
+        action="store_true",
+        help="print the summary as JSON (what summary.json holds) instead of the table",
     )
     _add_run_options(run)
 
@@ -93,7 +99,8 @@ def _add_compare_parser(sub) -> None:
         "--integrators",
         nargs="+",
         default=list(DEFAULT_INTEGRATORS),
-        help=f"integrators to compare (default: {' '.join(DEFAULT_INTEGRATORS)})",
+        help=f"integrators to compare, each one of {INTEGRATOR_NAMES} (default: "
+        f"{' '.join(DEFAULT_INTEGRATORS)})",
     )
     comp.add_argument(
         "-o", "--output", default=None, help="output folder (default alphaprk-compare-<system>)"

@@ -86,6 +86,8 @@ VOCABULARY = (
 )
 _BY_NAME = {entry.name.removesuffix("=<number>"): entry for entry in VOCABULARY}
 
+#: The names, in the vocabulary's order (``rattle, alpha=<number>, …, verlet``), for ``--help``.
+INTEGRATOR_NAMES = ", ".join(entry.name for entry in VOCABULARY)
 #: One line per name, for ``--help``.
 INTEGRATOR_HELP = "; ".join(f"{entry.name} = {entry.help}" for entry in VOCABULARY)
 
@@ -184,8 +186,15 @@ def label(spec: str | IntegratorSpec) -> str:
 def make_integrator(
     spec: str | IntegratorSpec, timestep: unit.Quantity | float, constraint_tolerance: float = 1e-8
 ) -> mm.Integrator:
-    """Create the integrator named by ``spec`` (timestep: Quantity or ps)."""
+    """Create the integrator named by ``spec`` (timestep: Quantity or ps).
+
+    A plain number is taken as picoseconds deliberately (the driver, sweeps and
+    benchmarks convert the user's units first), so it is passed on as a Quantity and
+    does not raise the integrators' :class:`~openmm_alphaprk.TimestepUnitWarning`.
+    """
     spec = parse_integrator(spec)
+    if not unit.is_quantity(timestep):
+        timestep = timestep * unit.picoseconds
     if spec.kind == "rattle":
         return RattleIntegrator(timestep, constraint_tolerance)
     if spec.kind == "alpha":
@@ -218,19 +227,26 @@ def check_compatible(
     massless = len(massless_particles(system))
     if not massless:
         return
+    shown = system_name.strip("'\"") if system_name != "this system" else "SYSTEM"
+    verlet = (
+        f"use verlet (openmm.VerletIntegrator, any platform): `alphaprk run {shown} verlet` or "
+        f"`alphaprk compare {shown} -i verlet`"
+    )
     if spec.kind in ("rattle", "alpha") and (spec.kind == "rattle" or spec.alpha == 0.0):
         reason = (
             f"on the {platform} platform OpenMM places virtual sites only at the end of a CustomIntegrator "
-            "step, so forces inside the step would see stale sites. Run it with --platform CUDA, OpenCL "
-            "or HIP (which place them at every constraint step)"
+            "step, so forces inside the step would see stale sites. Instead run it with --platform CUDA, "
+            "OpenCL or HIP, which place them at every constraint step: "
+            f"`alphaprk run {shown} {spec.name} --platform CUDA`; or {verlet}"
         )
     else:
         reason = (
             "α ≠ 0 and the energy modes take a force at the unconstrained midpoint of the step, where no "
-            "OpenMM platform places virtual sites. Use rattle or alpha4=0 on CUDA, OpenCL or HIP"
+            f"OpenMM platform places virtual sites. Instead {verlet}; or use rattle or alpha4=0 on CUDA, "
+            f"OpenCL or HIP: `alphaprk run {shown} rattle --platform CUDA`"
         )
     raise IncompatibleSystemError(
         f"integrator {spec.name!r} cannot run {system_name}: it has {massless} massless particle(s) "
-        f"(virtual sites, e.g. TIP4P-Ew M-sites); {reason}, use the integrator verlet "
-        "(openmm.VerletIntegrator, any platform), or a 3-site water model (tip3p-*, spce-3nm)."
+        f"(virtual sites, e.g. TIP4P-Ew M-sites), and {reason}; or use a 3-site water model (tip3p-*, "
+        "spce-3nm)."
     )

@@ -8,7 +8,6 @@
 from __future__ import annotations
 
 import json
-import warnings
 from pathlib import Path
 
 import numpy as np
@@ -33,15 +32,13 @@ def analyse_run(directory: Path) -> dict:
         stored = json.loads(cache.read_text(encoding="utf-8"))
         if stored.get("version") == ANALYSIS_VERSION:
             return stored
-    import MDAnalysis as mda
 
     from ..analysis import Diffusion, VelocityAutocorrelation, band_summary
     from ..analysis.structure import oxygen_rdf
+    from ..runs.rundir import open_universe
 
-    warnings.filterwarnings("ignore", category=DeprecationWarning)
     result: dict = {"version": ANALYSIS_VERSION}
-    topology = str(directory / "topology.pdb")
-    positions = mda.Universe(topology, str(directory / "trajectory.dcd"))
+    positions = open_universe(directory)
     rdf = oxygen_rdf(positions, select=WATER_O, nbins=RDF_BINS, r_max=RDF_RANGE[1])
     result["rdf_r"] = rdf.results.bins.tolist()
     result["rdf_g"] = rdf.results.rdf.tolist()
@@ -61,7 +58,7 @@ def analyse_run(directory: Path) -> dict:
     result["diffusion_error"] = float(np.std(d_groups, ddof=1) / np.sqrt(len(groups)))
     velocities_file = directory / "velocities.dcd"
     if velocities_file.is_file():
-        velocities = mda.Universe(topology, str(velocities_file))
+        velocities = open_universe(directory, velocities_file.name)
         vacf = VelocityAutocorrelation(velocities, select=WATER_H, max_lag=1.0).run()
         result["frequencies"] = vacf.results.frequencies.tolist()
         result["spectrum"] = vacf.results.spectrum.tolist()

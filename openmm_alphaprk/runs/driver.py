@@ -37,6 +37,19 @@ class RunFailedError(RuntimeError):
     """Raised when a run stops on a NaN or a failed step; the output up to then is kept."""
 
 
+class _CheckpointReporter(app.CheckpointReporter):
+    """OpenMM's ``CheckpointReporter`` that remembers the step of the last checkpoint it wrote."""
+
+    def __init__(self, file: str, interval: int, last_step: int | None) -> None:
+        super().__init__(file, interval)
+        self.last_step = last_step
+
+    def report(self, simulation: app.Simulation, state: mm.State) -> None:
+        """Write the checkpoint and remember its step."""
+        super().report(simulation, state)
+        self.last_step = simulation.currentStep
+
+
 @dataclass
 class _Run:
     """A prepared run: its system, integrator, options, directory and whether it resumes."""
@@ -98,6 +111,8 @@ def run_nve(
     run = prepare_run(system, spec, Path(output), RunOptions.build(options, **keywords))
     simulation = _simulation(run)
     start_step = _restore(simulation, run) if run.resume else _start(simulation, run)
+    if start_step > run.options.steps:  # an interrupted run whose checkpoint is past the length asked for
+        raise rundir.RunDirectoryError(rundir.longer_run_message(run.output, start_step, run.options.steps))
     summary_file = run.output / rundir.SUMMARY_FILE
     if start_step >= run.options.steps and summary_file.is_file():
         return RunSummary(**json.loads(summary_file.read_text(encoding="utf-8")))
@@ -183,7 +198,8 @@ def _start(simulation: app.Simulation, run: _Run) -> int:
 
 def simulate(simulation: app.Simulation, run: _Run, start_step: int, extra_reporters: list | None) -> float:
     """Attach the reporters, step to the end and checkpoint the last step; return the wall time (s)."""
-    reporters = _reporters(run.output, run.spec, run.options.intervals, append=run.resume)
+    restored = start_step if run.resume else None  # the step of the checkpoint resumed from
+    reporters = _reporters(run.output, run.spec, run.options.intervals, restored)
     if not run.resume:  # the start state's energy row: E_ref
         reporters[0].report(simulation, simulation.context.getState(getEnergy=True))
     simulation.reporters.extend(reporters)
@@ -194,8 +210,13 @@ def simulate(simulation: app.Simulation, run: _Run, start_step: int, extra_repor
     return wall
 
 
-def _reporters(output: Path, spec: IntegratorSpec, intervals: dict, append: bool) -> list:
-    """Energies first, checkpoint last: a checkpoint at step k follows the rows and frame of step k."""
+def _reporters(output: Path, spec: IntegratorSpec, intervals: dict, restored: int | None) -> list:
+    """Energies first, checkpoint last: a checkpoint at step k follows the rows and frame of step k.
+
+    ``restored``: the step of the checkpoint the run resumes from (the files are appended
+    to), None for a new run.
+    """
+    append = restored is not None
     reporters: list = [
         app.StateDataReporter(
             str(output / rundir.ENERGIES_FILE),
@@ -211,22 +232,26 @@ def _reporters(output: Path, spec: IntegratorSpec, intervals: dict, append: bool
     ]
     if spec.kind == "energy":
         reporters.append(AlphaControllerReporter(str(output / rundir.CONTROLLER_FILE), 1, append=append))
+    trajectory = output / rundir.TRAJECTORY_FILE
     reporters.append(
         app.DCDReporter(
-            str(output / rundir.TRAJECTORY_FILE),
+            str(trajectory),
             intervals["trajectory_interval"],
-            append=append,
+            append=append and rundir.has_dcd_header(trajectory),  # no frame yet: no header to append to
             enforcePeriodicBox=False,
         )
     )
     if "velocity_interval" in intervals:
+        velocities = output / rundir.VELOCITIES_FILE
         reporters.append(
             VelocityDCDReporter(
-                str(output / rundir.VELOCITIES_FILE), intervals["velocity_interval"], append=append
+                str(velocities),
+                intervals["velocity_interval"],
+                append=append and rundir.has_dcd_header(velocities),
             )
         )
     reporters.append(
-        app.CheckpointReporter(str(output / rundir.CHECKPOINT_FILE), intervals["checkpoint_interval"])
+        _CheckpointReporter(str(output / rundir.CHECKPOINT_FILE), intervals["checkpoint_interval"], restored)
     )
     return reporters
 
@@ -234,7 +259,6 @@ def _reporters(output: Path, spec: IntegratorSpec, intervals: dict, append: bool
 def _advance(simulation: app.Simulation, run: _Run, start_step: int) -> float:
     """Step to ``steps`` in chunks of ``energy_interval`` (progress bar); return the wall time (s)."""
     steps, chunk, output = run.options.steps, run.options.energy_interval, run.output
-    name = type(simulation.integrator).__name__
     started = time.perf_counter()
     with tqdm(
         total=steps,
@@ -250,13 +274,26 @@ def _advance(simulation: app.Simulation, run: _Run, start_step: int) -> float:
             try:
                 simulation.step(n)
             except (ValueError, ArithmeticError, RuntimeError, mm.OpenMMException) as error:
-                raise RunFailedError(
-                    f"run in {output} stopped near step {simulation.currentStep} with {name}: {error} "
-                    "The output up to then is kept; the last checkpoint is in "
-                    f"{output / rundir.CHECKPOINT_FILE}."
-                ) from error
+                raise _failure(simulation, run, error) from error
             bar.update(n)
     return time.perf_counter() - started
+
+
+def _failure(simulation: app.Simulation, run: _Run, error: Exception) -> RunFailedError:
+    """Return the error of a run that stopped: its step, its last finite energy and its checkpoint, if any."""
+    output, name = run.output, type(simulation.integrator).__name__
+    checkpoint = next((r for r in simulation.reporters if isinstance(r, _CheckpointReporter)), None)
+    path = output / rundir.CHECKPOINT_FILE
+    if checkpoint is not None and checkpoint.last_step is not None and path.is_file():
+        kept = f"the last checkpoint, {path}, is of step {checkpoint.last_step}"
+    else:
+        kept = "no checkpoint was written"
+    last_row = rundir.last_energy_step(output / rundir.ENERGIES_FILE)
+    finite = "" if last_row is None else f" (last energy row: step {last_row})"
+    return RunFailedError(
+        f"run in {output} stopped at step {simulation.currentStep} of {run.options.steps} with {name}"
+        f"{finite}: {error} The output up to then is kept; {kept}."
+    )
 
 
 def write_summary(simulation: app.Simulation, run: _Run, wall_seconds: float, start_step: int) -> RunSummary:

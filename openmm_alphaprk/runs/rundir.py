@@ -23,6 +23,7 @@ import math
 import os
 import re
 import struct
+import warnings
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -92,8 +93,9 @@ def check_run_directory(path: Path, parameters: dict[str, Any]) -> dict[str, Any
     Raises
     ------
     RunDirectoryError
-        If ``path`` is a file, holds files but no ``run.json``, or holds a run with
-        different parameters (the message names them).
+        If ``path`` is a file, holds files but no ``run.json``, holds a run with
+        different parameters (the message names them), or holds a finished run longer
+        than the ``steps`` asked for (a run is never reported as shorter than it is).
     """
     if path.exists() and not path.is_dir():
         raise RunDirectoryError(f"output {path} is a file; give a directory.")
@@ -117,7 +119,21 @@ def check_run_directory(path: Path, parameters: dict[str, Any]) -> dict[str, Any
             f"output directory {path} holds a different run ({'; '.join(differences)}). Choose another "
             "output directory, or repeat the stored settings to resume or extend that run."
         )
+    summary_file = path / SUMMARY_FILE
+    if summary_file.is_file():
+        done = json.loads(summary_file.read_text(encoding="utf-8")).get("steps", 0)
+        if done > parameters["steps"]:
+            raise RunDirectoryError(longer_run_message(path, done, parameters["steps"]))
     return stored
+
+
+def longer_run_message(path: Path, done: int, requested: int) -> str:
+    """Return the refusal of a directory holding a run of ``done`` steps when fewer were requested."""
+    return (
+        f"output directory {path} holds a run of {done} steps, longer than the {requested} asked for; it is "
+        f"not cut short or reported as {requested} steps. Ask for {done} steps (--steps {done}) to report "
+        f"it, or more to extend it, or choose another output directory for a {requested}-step run."
+    )
 
 
 def _same(a: Any, b: Any) -> bool:
@@ -139,6 +155,17 @@ def read_energies(path: str | os.PathLike) -> np.ndarray:
     if data.shape[0] == 0:
         raise ValueError(f"{path} holds no energy rows.")
     return data
+
+
+def last_energy_step(path: Path) -> int | None:
+    """Return the step of the last complete row of ``energies.csv``, None if it has none."""
+    if not path.is_file():
+        return None
+    last = None
+    for line in path.read_text(encoding="utf-8").splitlines(keepends=True):
+        if line.endswith("\n") and line[:1].isdigit():
+            last = line
+    return None if last is None else int(float(last.split(",")[0]))
 
 
 def remove_outputs(path: Path) -> None:
@@ -181,9 +208,9 @@ def truncate_dcd(path: Path, n_frames: int) -> int:
     """Cut an OpenMM-written DCD file to its first ``n_frames`` frames; return the frames kept.
 
     Updates the frame count and last step in the header, so that ``DCDReporter(append=True)``
-    continues from there.
+    continues from there. A file without a header (no frame written yet) is left as it is.
     """
-    if not path.is_file():
+    if not path.is_file() or path.stat().st_size == 0:
         return 0
     with open(path, "r+b") as handle:
         header = handle.read(276)
@@ -205,6 +232,34 @@ def truncate_dcd(path: Path, n_frames: int) -> int:
         handle.seek(20)
         handle.write(struct.pack("<i", first_step + max(keep - 1, 0) * interval))
     return keep
+
+
+def has_dcd_header(path: Path) -> bool:
+    """Tell whether ``path`` starts with a DCD header (OpenMM writes it with the first frame)."""
+    if not path.is_file():
+        return False
+    with open(path, "rb") as handle:
+        return handle.read(8)[4:8] == b"CORD"
+
+
+def open_universe(path: str | os.PathLike, trajectory: str = TRAJECTORY_FILE):
+    """Return an MDAnalysis ``Universe`` of a run directory's ``topology.pdb`` and one of its DCD files.
+
+    MDAnalysis 2.x warns (``DeprecationWarning``) on every ``DCDReader`` that from 3.0
+    on its frames will be updated in place instead of copied (MDAnalysis issue 3889);
+    there is no other API to read DCD files. This package copies what it keeps of a frame
+    (``positions`` into its own arrays), so the change does not affect it, and only that
+    warning is silenced here, with the PDB reader's notes on records it does not use.
+    """
+    import MDAnalysis as mda
+
+    path = Path(path)
+    with warnings.catch_warnings():
+        warnings.filterwarnings(
+            "ignore", message="DCDReader currently makes independent timesteps", category=DeprecationWarning
+        )
+        warnings.simplefilter("ignore", UserWarning)  # PDB records MDAnalysis does not use
+        return mda.Universe(str(path / TOPOLOGY_FILE), str(path / trajectory))
 
 
 def folder_name(text: str) -> str:

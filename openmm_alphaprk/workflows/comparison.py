@@ -84,7 +84,7 @@ def compare(
     summaries = [run_nve(prepared, spec, directories[spec.name], options) for spec in specs]
     header = _header(prepared, summaries[0], options)
     table = format_table(summaries, header, any(spec.kind == "verlet" for spec in specs))
-    figure = _figure(directories, output, header) if plot else None
+    figure = _figure(directories, output, summaries[0], options) if plot else None
     _write(output, prepared.name, header, directories, summaries, figure, table)
     return Comparison(prepared.name, summaries, table, output, figure)
 
@@ -144,15 +144,31 @@ def _prepare(
     return prepared
 
 
-def _figure(directories: dict[str, Path], output: Path, header: str) -> Path:
-    """Plot H − E_ref of every run against time; return the figure's path."""
-    from .plots import plot_energy_residuals
+def _figure(directories: dict[str, Path], output: Path, first: RunSummary, options: RunOptions) -> Path:
+    """Plot H − E_ref of every run against time (leapfrog Verlet in its own panel); return the path."""
+    from .plots import plot_energy_residuals, run_caption
 
     traces = {}
     for name, directory in directories.items():
         energies = rundir.read_energies(directory / rundir.ENERGIES_FILE)
         traces[name] = energies[:, 1], energies[:, 4] - energies[0, 4]
-    return Path(plot_energy_residuals(traces, output / FIGURE_FILE, header))
+    caption = run_caption(
+        first.system,
+        first.n_atoms,
+        first.timestep_fs,
+        first.steps,
+        first.platform,
+        precision=options.precision,
+        dof=first.degrees_of_freedom,
+        energy_interval=options.energy_interval,
+    )
+    leapfrog = [name for name in directories if parse_integrator(name).kind == "verlet"]
+    path = output / FIGURE_FILE
+    return Path(
+        plot_energy_residuals(
+            traces, path, caption=caption, not_comparable=leapfrog, dof=first.degrees_of_freedom
+        )
+    )
 
 
 def _write(

@@ -104,7 +104,7 @@ def cell_status(cell: Cell, directory: Path) -> dict[str, Any] | None:
     summary_file = directory / "summary.json"
     if summary_file.is_file():
         summary = json.loads(summary_file.read_text(encoding="utf-8"))
-        if summary.get("steps", 0) >= cell.steps:
+        if summary.get("steps", 0) == cell.steps:  # a longer run is refused by run_nve, not reported
             return _cell_row(cell, directory) | {"status": "ok"} | _flatten(summary)
     error_file = directory / ERROR_FILE
     if error_file.is_file():
@@ -231,9 +231,7 @@ class _Sweep:
         write_table(self.table, self.ordered())
         if self.progress:
             print(
-                f"sweep: {len(self.config.cells)} cells, {len(self.result.skipped)} finished before, "
-                f"{len(pending)} to run -> {self.table}",
-                file=sys.stderr,
+                f"sweep: {len(pending)} to run, {len(self.result.skipped)} finished before", file=sys.stderr
             )
         return pending
 
