@@ -72,7 +72,7 @@ VOCABULARY = (
         "energy",
         2,
         "AlphaRattleIntegrator(alpha='energy'), alpha chosen per step to hold H at E_ref "
-        "(~7 force evaluations/step)",
+        "(measured 6.6 force evaluations/step on a 2,661-atom water box, 12.2 on villin; CPU)",
     ),
     IntegratorName(
         "alpha4=<number>",
@@ -81,7 +81,13 @@ VOCABULARY = (
         "the same with order=4 (triple jump, alpha on the middle sub-step; alpha4=0 is 4th-order "
         "triple-jump RATTLE, 3 evaluations/step)",
     ),
-    IntegratorName("energy4", "energy", 4, "order=4 in the energy mode (~6 evaluations/step)"),
+    IntegratorName(
+        "energy4",
+        "energy",
+        4,
+        "order=4 in the energy mode (measured 7.0 evaluations/step on a 2,661-atom water box, 9.4 on "
+        "villin; CPU)",
+    ),
     IntegratorName("verlet", "verlet", 2, VERLET_IS_LEAPFROG),
 )
 _BY_NAME = {entry.name.removesuffix("=<number>"): entry for entry in VOCABULARY}
