@@ -88,7 +88,9 @@ def solute_in_vacuum():
     modeller = app.Modeller(pdb.topology, pdb.positions)
     modeller.delete([r for r in modeller.topology.residues() if r.name.upper() in ("HOH", "CL", "NA")])
     forcefield = app.ForceField("amber14-all.xml")
-    system = forcefield.createSystem(modeller.topology, nonbondedMethod=app.NoCutoff, constraints=app.HBonds)
+    system = forcefield.createSystem(
+        modeller.topology, nonbondedMethod=app.NoCutoff, constraints=app.HBonds, removeCMMotion=False
+    )
     make_smooth(system)
     integrator = mm.LangevinMiddleIntegrator(300, 5, 0.002)
     integrator.setRandomNumberSeed(11)
