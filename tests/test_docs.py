@@ -29,7 +29,9 @@ def test_defaults_and_readme_commands_use_the_recommended_energy_mode():
     """Order 2's energy mode is documented as not for production: no default or example uses it."""
     assert parse_integrator("energy") not in [parse_integrator(name) for name in DEFAULT_INTEGRATORS]
     assert "energy4" in DEFAULT_INTEGRATORS
-    commands = re.findall(r"^alphaprk (?:run|compare) .*$", (ROOT / "README.md").read_text(), re.M)
+    commands = re.findall(
+        r"^alphaprk (?:run|compare) .*$", (ROOT / "README.md").read_text(encoding="utf-8"), re.M
+    )
     assert commands, "the README shows alphaprk run/compare commands"
     for command in commands:
         names = command.split("#")[0].split()
