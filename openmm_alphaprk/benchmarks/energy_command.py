@@ -133,7 +133,8 @@ def _check_arguments(parser: argparse.ArgumentParser, args: argparse.Namespace) 
     if args.system:
         if len(set(args.system)) < len(args.system):
             parser.error(f"--system: a system named twice in {args.system}")
-        unknown = [name for name in args.system if name not in list_systems()]
+        known = set(list_systems())
+        unknown = [name for name in args.system if name not in known]
         if unknown:
             parser.error(f"unknown system(s) {unknown}; choose from {', '.join(list_systems())}")
 

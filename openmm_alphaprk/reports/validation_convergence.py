@@ -50,11 +50,7 @@ def pendulum_period_study(counts: list[int]) -> dict:
                 at_bound.append(alpha_statistics(alphas)["fraction_at_bound"])
         base = "alpha=0" if method.order == 2 else "alpha4=0"
         entry = {
-            "label": method.label,
-            "order": method.order,
-            "errors": errors,
-            "fitted_order": fitted_order(hs, np.array(errors)),
-            "local_orders": local_orders(errors),
+            **_order_entry(method, hs, errors),
             "max_energy_error": energy_errors,
             "max_difference_from_alpha_zero": float(
                 max(np.max(np.abs(a - b)) for a, b in zip(ends[method.key], ends[base]))
@@ -104,17 +100,24 @@ def fixed_time_study(
         if method.key == "alpha=0":
             rattle_errors = np.array(errors)
         entry = {
-            "label": method.label,
-            "order": method.order,
-            "errors": errors,
-            "fitted_order": fitted_order(hs, np.array(errors)),
-            "local_orders": local_orders(errors),
+            **_order_entry(method, hs, errors),
             "error_over_rattle": (np.array(errors) / rattle_errors).tolist(),
         }
         if stats:
             entry["alpha_star"] = {k: [s[k] for s in stats] for k in stats[0]}
         result["methods"][method.key] = entry
     return result
+
+
+def _order_entry(method, hs: np.ndarray, errors: list[float]) -> dict:
+    """Return what every convergence study records of a method: label, order, errors, fitted orders."""
+    return {
+        "label": method.label,
+        "order": method.order,
+        "errors": errors,
+        "fitted_order": fitted_order(hs, np.array(errors)),
+        "local_orders": local_orders(errors),
+    }
 
 
 def convergence(quick: bool) -> dict:

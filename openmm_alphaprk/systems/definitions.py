@@ -168,7 +168,7 @@ def parse_definition(data: dict[str, Any], name: str) -> SystemDefinition:
     if kind == "water_box" and build["cutoff_nm"] >= build["box_edge_nm"] / 2:
         raise DefinitionError(
             f"system {name!r}: cutoff_nm {build['cutoff_nm']} must be below half the box edge "
-            f"({build['box_edge_nm'] / 2} nm)."
+            f"({build['box_edge_nm'] / 2} nm); use a larger box or a shorter cutoff."
         )
     for key in ("temperature_K", "langevin_timestep_fs", "langevin_friction_per_ps"):
         if not equilibration[key] > 0:

@@ -75,8 +75,7 @@ def build_water_box(
     """
     edge = to_float(box_size, unit.nanometers, "box_size", positive=True)
     rc = to_float(cutoff, unit.nanometers, "cutoff", positive=True)
-    if rc >= edge / 2:
-        raise ValueError(f"cutoff {rc} nm must be below half the box edge ({edge / 2} nm); use a larger box.")
+    # the ranges (cutoff below half the edge, switch below the cutoff) are parse_definition's checks
     build = _build_table(model, edge, rc, _switch_distance(switch_distance, rc), ewald_error_tolerance)
     kelvin = to_float(temperature, unit.kelvin, "temperature", positive=True)
     equilibration = {**EQUILIBRATION, "seed": int(seed), "temperature_K": kelvin, "platform": platform}
@@ -110,7 +109,4 @@ def _switch_distance(switch_distance: object, cutoff: float) -> float | None:
         return max(cutoff - 0.1, 0.5 * cutoff)
     if switch_distance is None:
         return None
-    switch = to_float(switch_distance, unit.nanometers, "switch_distance")
-    if not 0 < switch < cutoff:
-        raise ValueError(f"switch_distance {switch} nm must lie between 0 and the cutoff ({cutoff} nm).")
-    return switch
+    return to_float(switch_distance, unit.nanometers, "switch_distance")
