@@ -66,6 +66,8 @@ class IntegratorSpec:
 
 #: The rows, by integrator name (:mod:`openmm_alphaprk.integrators.names`); the first is the baseline.
 INTEGRATOR_NAMES = ("rattle", "energy", "alpha4=0", "energy4")
+#: α-RATTLE-4's fixed α values scanned beside the energy modes (with ``alpha4=0``: the fixed-α scan).
+FIXED_ALPHA_SCAN = (0.005, 0.01, 0.015, 0.02)
 #: Label of the row whose force evaluations per step set k for the equal-cost RATTLE row.
 EQUAL_COST_REFERENCE = label("energy4")
 
@@ -293,26 +295,57 @@ def largest_stable_step(
     return largest, outcomes
 
 
-def ratios_to_rattle(rows: Sequence[EnergyRow]) -> dict[str, dict[str, float]]:
-    """RMS(H − E_ref) of RATTLE over each row's, at 2 fs and at equal cost.
+def fixed_alpha_names(values: Sequence[float]) -> tuple[str, ...]:
+    """Integrator names of α-RATTLE-4 with the fixed α ``values`` (``alpha4=0.01`` …)."""
+    return tuple(f"alpha4={value:g}" for value in values)
+
+
+def best_fixed_alpha(rows: Sequence[EnergyRow]) -> EnergyRow | None:
+    """The α-RATTLE-4 fixed-α row (``alpha4=0`` included) with the lowest RMS(H − E_ref), if any ran."""
+    prefix = label("alpha4=0").removesuffix("0")  # "α-RATTLE-4 α = "
+    fixed = [
+        row
+        for row in rows
+        if row.name.startswith(prefix)
+        and row.blew_up_at_step is None
+        and np.isfinite(row.rms_residual)
+    ]
+    return min(fixed, key=lambda row: row.rms_residual, default=None)
+
+
+def ratios_to_rattle(rows: Sequence[EnergyRow]) -> dict[str, dict[str, float | str]]:
+    """RMS(H − E_ref) of the baselines over each row's: RATTLE at 2 fs and at equal cost, α-RATTLE-4 at fixed α.
 
     ``rms_vs_rattle``: RATTLE's RMS / the row's (how many times lower the row is than
     RATTLE at the same step). ``rms_vs_rattle_equal_cost``: the equal-cost RATTLE row's
     RMS (RATTLE at h/k, k the force evaluations per step of :data:`EQUAL_COST_REFERENCE`)
     / the row's, given for the rows whose evaluations per step round to that k.
+    For the energy-mode rows also ``rms_vs_alpha4_0`` (triple-jump RATTLE's RMS / the
+    row's) and ``rms_vs_best_fixed_alpha`` with ``best_fixed_alpha`` (the label of the
+    fixed-α row with the lowest RMS), where those rows ran; a ratio below 1 means the
+    baseline did better.
     """
     by_name = {row.name: row for row in rows}
     rattle = by_name.get(label("rattle"))
     equal = next((row for row in rows if row.name.startswith(equal_cost_label(""))), None)
+    triple_jump = by_name.get(label("alpha4=0"))
+    best = best_fixed_alpha(rows)
+    energy_labels = {label("energy"), label("energy4")}
     ratios = {}
     for row in rows:
         if rattle is None or row is rattle or row is equal or not row.rms_residual > 0:
             continue
-        entry = {"rms_vs_rattle": rattle.rms_residual / row.rms_residual}
+        entry: dict[str, float | str] = {"rms_vs_rattle": rattle.rms_residual / row.rms_residual}
         same_cost = equal is not None and round(row.force_evaluations_per_step) == round(
             equal.force_evaluations_per_step
         )
         if same_cost:
             entry["rms_vs_rattle_equal_cost"] = equal.rms_residual / row.rms_residual
+        if row.name in energy_labels:
+            if triple_jump is not None:
+                entry["rms_vs_alpha4_0"] = triple_jump.rms_residual / row.rms_residual
+            if best is not None:
+                entry["best_fixed_alpha"] = best.name
+                entry["rms_vs_best_fixed_alpha"] = best.rms_residual / row.rms_residual
         ratios[row.name] = entry
     return ratios
