@@ -301,20 +301,18 @@ def fixed_alpha_names(values: Sequence[float]) -> tuple[str, ...]:
 
 
 def best_fixed_alpha(rows: Sequence[EnergyRow]) -> EnergyRow | None:
-    """The α-RATTLE-4 fixed-α row (``alpha4=0`` included) with the lowest RMS(H − E_ref), if any ran."""
+    """Return the α-RATTLE-4 fixed-α row (``alpha4=0`` included) with the lowest RMS(H − E_ref), if any."""
     prefix = label("alpha4=0").removesuffix("0")  # "α-RATTLE-4 α = "
     fixed = [
         row
         for row in rows
-        if row.name.startswith(prefix)
-        and row.blew_up_at_step is None
-        and np.isfinite(row.rms_residual)
+        if row.name.startswith(prefix) and row.blew_up_at_step is None and np.isfinite(row.rms_residual)
     ]
     return min(fixed, key=lambda row: row.rms_residual, default=None)
 
 
 def ratios_to_rattle(rows: Sequence[EnergyRow]) -> dict[str, dict[str, float | str]]:
-    """RMS(H − E_ref) of the baselines over each row's: RATTLE at 2 fs and at equal cost, α-RATTLE-4 at fixed α.
+    """RMS(H − E_ref) of the baselines over each row's: RATTLE (same step, equal cost), fixed α.
 
     ``rms_vs_rattle``: RATTLE's RMS / the row's (how many times lower the row is than
     RATTLE at the same step). ``rms_vs_rattle_equal_cost``: the equal-cost RATTLE row's
