@@ -38,6 +38,39 @@ def _residuals(ctx, integrator, steps, e_ref):
     return np.array(measured), np.array(claimed), np.array(fell_back, dtype=bool)
 
 
+@pytest.mark.parametrize("order", [2, 4])
+def test_energy_mode_keeps_angular_momentum_to_round_off_by_default_without_a_box(order):
+    """Without a periodic box the default midpoint tolerance keeps L (the defaults left 5e-8 at order 2)."""
+    integrator = AlphaRattleIntegrator(0.002, alpha="energy", order=order, constraint_tolerance=1e-12)
+    problem, ctx = _cluster_context(integrator)
+    l0 = angular_momentum(problem, positions_of(ctx).ravel(), velocities_of(ctx).ravel())
+    integrator.step(200)
+    change = angular_momentum(problem, positions_of(ctx).ravel(), velocities_of(ctx).ravel()) - l0
+    assert np.linalg.norm(change) / np.linalg.norm(l0) < 1e-10
+    assert integrator.midpoint_tolerance.value_in_unit(unit.nanometers) == 1e-13
+
+
+def test_totals_give_the_rms_and_maximum_of_every_step():
+    integrator = AlphaRattleIntegrator(0.002, alpha="energy", order=4, constraint_tolerance=1e-12)
+    _, ctx = _cluster_context(integrator)
+    assert np.isnan(integrator.controller_totals()["rms_residual"])
+    measured, _, _ = _residuals(ctx, integrator, 40, total_energy(ctx))
+    totals = integrator.controller_totals()
+    assert totals["rms_residual"] == pytest.approx(np.sqrt(np.mean(measured**2)), rel=1e-6, abs=1e-9)
+    assert totals["max_abs_residual"] == pytest.approx(np.max(np.abs(measured)), rel=1e-6, abs=1e-9)
+    assert totals["max_abs_residual"] > 0
+
+
+def test_a_chosen_midpoint_tolerance_is_kept_without_a_box():
+    integrator = AlphaRattleIntegrator(0.002, alpha="energy", order=4, midpoint_tolerance=1e-7)
+    _, ctx = _cluster_context(integrator)
+    integrator.step(1)
+    assert integrator.midpoint_tolerance.value_in_unit(unit.nanometers) == pytest.approx(1e-7)
+    integrator.midpoint_tolerance = 1e-8
+    assert integrator.getGlobalVariableByName("midpoint_tolerance_automatic") == 0
+    del ctx
+
+
 def test_energy_mode_on_a_water_cluster_holds_energy_and_keeps_momenta():
     tight = {"constraint_tolerance": 1e-12}
     rattle = RattleIntegrator(0.002, **tight)

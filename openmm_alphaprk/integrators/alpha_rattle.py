@@ -66,9 +66,11 @@ class AlphaRattleIntegrator(EnergyModeProgram):
         The midpoint iteration stops when the change that the last midpoint force
         makes to the next solve of x1, h²α ΔF/m, falls below this (nm, RMS per
         degree of freedom). Default 1e-10 nm for fixed α (symplectic to that
-        level); in the energy mode 1e-7 nm (order 2) or 1e-6 nm (order 4, where α*
-        is ~100× smaller), since there it only limits how well angular momentum is
-        kept: ΔL ≈ 2hα δx_m × F per step.
+        level). In the energy mode with a periodic box 1e-7 nm (order 2) or 1e-6 nm
+        (order 4, where α* is ~100× smaller), since there it only limits how well
+        angular momentum is kept (ΔL ≈ 2hα δx_m × F per step), which a periodic box
+        does not conserve anyway; without a periodic box 1e-13 nm, set at the first
+        step, which keeps angular momentum to round-off.
     max_midpoint_iterations
         Cap on midpoint force evaluations per step (in the energy mode summed over the
         trials; a trial takes one or more midpoint evaluations and one (order 2) or two
@@ -157,6 +159,8 @@ class AlphaRattleIntegrator(EnergyModeProgram):
         super().__init__(timestep, constraint_tolerance)
         self._add_midpoint_variables(start_alpha, tolerance, max_iterations, order)
         self._build(order, settings)
+        if settings is not None and midpoint_tolerance is not None:
+            self.setGlobalVariableByName("midpoint_tolerance_automatic", 0)
 
     def _build(self, order: int, settings: ControllerSettings | None) -> None:
         """Build the program of ``order``: fixed α, or the energy mode with ``settings``."""
@@ -256,6 +260,7 @@ class AlphaRattleIntegrator(EnergyModeProgram):
         self._set_degrees_of_freedom(3 * (system.getNumParticles() - self._massless_count))
         if self.energy_mode:
             self._set_automatic_energy_tolerance(system.getNumParticles(), platforms.force_precision(context))
+            self._set_system_defaults(system.usesPeriodicBoundaryConditions())
             warn_if_not_smooth(system)  # points at the user's step() call
 
     def _prepare_without_context(self) -> None:
@@ -264,6 +269,7 @@ class AlphaRattleIntegrator(EnergyModeProgram):
         self._set_degrees_of_freedom(3 * atoms)
         if self.energy_mode:
             self._set_automatic_energy_tolerance(atoms, "single")
+            self._set_system_defaults(periodic=True)  # the system is not known: no round-off claim
 
     def _check_before_steps(self) -> None:
         if self._massless_count and (self.energy_mode or self.alpha != 0.0):

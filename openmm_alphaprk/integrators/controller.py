@@ -145,8 +145,12 @@ class EnergyControllerProgram(MidpointProgram):
             "steps_fallen_back",
             "steps_at_bound",
             "predictor_valid",
+            "sum_residual_squared",
+            "max_abs_residual",
         ):
             self.addGlobalVariable(name, 0)
+        # 0 once the user chose midpoint_tolerance; else set for the system at the first step
+        self.addGlobalVariable("midpoint_tolerance_automatic", 1)
         for name in ("xend", "vend", "fmid_last") + (("xa", "va", "fa", "fstart_last") if order == 4 else ()):
             self.addPerDofVariable(name, 0)
 
@@ -350,6 +354,9 @@ class EnergyControllerProgram(MidpointProgram):
         )
         self.addComputeGlobal("steps_fallen_back", "steps_fallen_back + fell_back")
         self.addComputeGlobal("steps_at_bound", "steps_at_bound + alpha_at_bound")
+        # every step's H − E_ref, for the run's RMS and maximum without reading the state each step
+        self.addComputeGlobal("sum_residual_squared", "sum_residual_squared + residual^2")
+        self.addComputeGlobal("max_abs_residual", "max(max_abs_residual, abs(residual))")
         self._add_slope_scale_update()
         self.addComputeGlobal("predictor_valid", "1 - midpoint_failed")
 

@@ -25,6 +25,9 @@ from .controller import (
 
 DEFAULT_MAX_TRIALS = 3
 DEFAULT_SLOPE_DAMPING = 0.5
+#: Default midpoint tolerance (nm) of the energy mode without a periodic box, where angular
+#: momentum is conserved: iterated to this, the midpoint keeps it to round-off.
+NON_PERIODIC_MIDPOINT_TOLERANCE = 1e-13
 
 
 @dataclass(frozen=True)
@@ -115,6 +118,17 @@ class EnergyModeProgram(EnergyControllerProgram):
             tolerance = platforms.default_energy_tolerance(n_atoms, precision)
             self.setGlobalVariableByName("energy_tolerance", tolerance)
 
+    def _set_system_defaults(self, periodic: bool) -> None:
+        """Set the midpoint tolerance for the system's box, unless the user chose one.
+
+        With a periodic box angular momentum is not conserved by any integrator and the
+        order's default stands. Without one (a cluster or molecule in vacuum) the
+        midpoint is iterated to :data:`NON_PERIODIC_MIDPOINT_TOLERANCE`, which keeps
+        angular momentum to round-off, at more midpoint forces per step.
+        """
+        if not periodic and self.getGlobalVariableByName("midpoint_tolerance_automatic"):
+            self.setGlobalVariableByName("midpoint_tolerance", NON_PERIODIC_MIDPOINT_TOLERANCE)
+
     def reset_reference_energy(self) -> None:
         """Take E_ref from the state at the start of the next step.
 
@@ -178,14 +192,17 @@ class EnergyModeProgram(EnergyControllerProgram):
         return int(self.getGlobalVariableByName(TRIALS))
 
     def controller_totals(self) -> dict[str, float]:
-        """Totals since the integrator was created: steps, within tolerance, fallbacks, at bound.
+        """Totals over every step since the integrator was created.
 
         Returns
         -------
         A dict with ``steps``, ``steps_within_tolerance``, ``steps_fallen_back``,
         ``steps_at_bound``, ``reference_resets`` (counts), the fractions
-        ``fraction_within_tolerance`` and ``fraction_fallen_back``, and
-        ``force_evaluations_per_step``.
+        ``fraction_within_tolerance`` and ``fraction_fallen_back``,
+        ``force_evaluations_per_step``, and ``rms_residual`` and ``max_abs_residual``:
+        RMS and maximum of H − E_ref after each step (kJ/mol; NaN before the first step),
+        accumulated inside the step program, so that a reporter need not read the state
+        every step.
         """
         self._require_energy_mode("controller_totals()")
         steps = self.steps_taken
@@ -194,12 +211,15 @@ class EnergyModeProgram(EnergyControllerProgram):
             for name in ("steps_within_tolerance", "steps_fallen_back", "steps_at_bound", "reference_resets")
         }
         fraction = (lambda n: n / steps) if steps else (lambda n: float("nan"))
+        squares = self.getGlobalVariableByName("sum_residual_squared")
         return {
             "steps": steps,
             **totals,
             "fraction_within_tolerance": fraction(totals["steps_within_tolerance"]),
             "fraction_fallen_back": fraction(totals["steps_fallen_back"]),
             "force_evaluations_per_step": self.force_evaluations_per_step,
+            "rms_residual": fraction(squares) ** 0.5 if steps else float("nan"),
+            "max_abs_residual": self.getGlobalVariableByName("max_abs_residual") if steps else float("nan"),
         }
 
     @property

@@ -203,6 +203,8 @@ class MidpointProgram(StepProgram):
     def midpoint_tolerance(self, value: unit.Quantity | float) -> None:
         tolerance = to_float(value, unit.nanometers, "midpoint_tolerance", positive=True)
         self.setGlobalVariableByName("midpoint_tolerance", tolerance)
+        if getattr(self, "energy_mode", False):  # the user's choice: not changed for the system
+            self.setGlobalVariableByName("midpoint_tolerance_automatic", 0)
 
     @property
     def max_midpoint_iterations(self) -> int:
