@@ -417,3 +417,17 @@ def test_energy_mode_summary_uses_the_integrators_totals_over_every_step(cluster
     assert "energy (energy mode), over all 20 steps: RMS |H - E_ref| 0.0123 kJ/mol, max 0.0456 kJ/mol" in (
         " ".join(format_table([summary]).split())
     )
+
+
+def test_a_finished_run_with_an_older_summary_is_summarized_again(cluster, tmp_path):
+    """A summary.json without the newer fields (the drift's standard error) is rewritten, not returned as is."""
+    first = run_nve(cluster, "energy", tmp_path, steps=20, **REFERENCE_RUN)
+    path = tmp_path / rundir.SUMMARY_FILE
+    old = json.loads(path.read_text(encoding="utf-8"))
+    for key in ("drift_per_dof_standard_error", "drift_resolved"):
+        del old[key]
+    del old["controller"]["residuals_over"]
+    path.write_text(json.dumps(old), encoding="utf-8")
+    again = run_nve(cluster, "energy", tmp_path, steps=20, **REFERENCE_RUN)
+    assert again == first  # the same numbers, from the same files and final checkpoint
+    assert json.loads(path.read_text(encoding="utf-8")) == first.as_dict()
