@@ -47,8 +47,9 @@ def compare(
 
     Each integrator gets its own run directory ``output/<integrator>`` (see
     :func:`~openmm_alphaprk.runs.run_nve`; an interrupted comparison resumes where it
-    stopped). Writes ``comparison.json``, the table, and ``energy_residuals.png``
-    (H − E_ref against time for all integrators).
+    stopped). Writes ``comparison.json``, the table (``table.txt``, with notes that define
+    E_ref, the drift ± standard error and "fell back"), and ``energy_residuals.png``
+    (H − E_ref against time for all integrators, with the table's RMS and drift).
 
     Parameters
     ----------
@@ -58,7 +59,8 @@ def compare(
     integrators
         Integrator names (``rattle``, ``verlet``, ``energy``, ``alpha=<number>``).
     output
-        Folder of the comparison.
+        Folder of the comparison; a relative path is taken from the current directory
+        (the default, ``alphaprk-compare``, is created there).
     options, **keywords
         The options of every run, a :class:`~openmm_alphaprk.runs.RunOptions` and/or
         its fields as keywords (``steps`` per integrator, ``timestep``, ``platform``,
