@@ -14,7 +14,7 @@ import MDAnalysis as mda
 import openmm as mm
 
 from openmm_alphaprk.analysis import ConstraintDeviation, Diffusion, energy_drift, oxygen_rdf
-from openmm_alphaprk.observables import degrees_of_freedom
+from openmm_alphaprk.observables import degrees_of_freedom, drift_text
 from openmm_alphaprk.runs import read_energies, run_nve
 
 parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -37,8 +37,14 @@ peak = rdf.results.rdf.argmax()
 print(f"O-O RDF: first peak g = {rdf.results.rdf[peak]:.2f} at {rdf.results.bins[peak]:.2f} Å")
 
 msd = Diffusion(universe, "resname HOH and name O").run()  # MDAnalysis EinsteinMSD + linear fit
-print(f"diffusion: D = {msd.results.diffusion_coefficient:.3g} × 1e-5 cm²/s (short runs: not converged)")
+d = msd.results
+print(
+    f"diffusion: D = {d.diffusion_coefficient:.3g} ± {d.diffusion_coefficient_standard_error:.2g} "
+    "× 1e-5 cm²/s "
+    f"from {d.frames} frames (± over {d.error_groups} groups of molecules; short runs: not converged)"
+)
 
 energies = read_energies(run / "energies.csv")
-drift = energy_drift(energies[:, 1], energies[:, 4], degrees_of_freedom(system))
+drift = energy_drift(energies[:, 1], energies[:, 4], degrees_of_freedom(system))  # E_ref: the start state
+print(f"drift/DOF: {drift_text(drift.drift_per_dof, drift.drift_per_dof_standard_error, 'kJ/mol/ns')}")
 print("energy:", json.dumps(drift.as_dict(), indent=1))

@@ -1,10 +1,12 @@
-"""The quantities every room measures, each in one place: energy, drift, DOF, constraints, momenta, α*.
+"""The quantities every room measures, each in one place: energy, drift, RMS, DOF, constraints, momenta, α*.
 
 Runs, analyses, benchmarks, reports and tests import these; nothing here imports
 anything of the package above it (integrators, runs, workflows).
 """
 
 from __future__ import annotations
+
+from dataclasses import asdict, dataclass
 
 import numpy as np
 import openmm as mm
@@ -35,10 +37,201 @@ def degrees_of_freedom(system: mm.System) -> int:
     return 3 * massive - system.getNumConstraints() - (3 if removes_cm else 0)
 
 
-def drift_per_dof(times_ps: np.ndarray, residuals: np.ndarray, dof: int) -> float:
-    """Slope of a least-squares line through H(t), in kJ/mol/ns per degree of freedom."""
-    slope_per_ps = np.polyfit(times_ps, residuals, 1)[0]
-    return float(slope_per_ps * 1000.0 / dof)
+def rms(values: np.ndarray, axis: int | None = None) -> float | np.ndarray:
+    """Root mean square, √(mean x²), of ``values`` (along ``axis``); NaN for no values.
+
+    The one definition of every "RMS" the package reports (RMS |H − E_ref| of runs,
+    comparisons, figures, benchmarks).
+    """
+    values = np.asarray(values, dtype=float)
+    if values.size == 0:
+        return float("nan")
+    result = np.sqrt(np.mean(np.square(values), axis=axis))
+    return float(result) if axis is None else result
+
+
+def residual_statistics(residuals: np.ndarray) -> tuple[float, float]:
+    """RMS and max |H − E_ref| (kJ/mol) of a trace of H − E_ref that starts at the start state.
+
+    The first sample is the start state itself (H − E_ref = 0 by definition of E_ref)
+    and is left out; NaN for a trace of one sample.
+    """
+    after_start = np.asarray(residuals, dtype=float)[1:]
+    if after_start.size == 0:
+        return float("nan"), float("nan")
+    return rms(after_start), float(np.max(np.abs(after_start)))
+
+
+@dataclass(frozen=True)
+class DriftFit:
+    """A least-squares line through H − E_ref against time, with the standard error of its slope.
+
+    Attributes
+    ----------
+    slope
+        The drift: slope of the line, in kJ/mol/ns (or the unit of the values per ns).
+    standard_error
+        Standard error of ``slope`` (same unit), widened for correlated samples (see
+        :func:`fit_drift`); NaN with fewer than three samples, infinite when the samples
+        are so correlated that fewer than three are effectively independent.
+    intercept
+        Value of the line at time 0 (kJ/mol).
+    scatter
+        RMS of the samples about the line (kJ/mol): the noise the slope is measured against.
+    lag1_correlation
+        Lag-1 autocorrelation of the samples about the line, clipped to [0, 1).
+    samples
+        Number of samples fitted.
+    """
+
+    slope: float
+    standard_error: float
+    intercept: float
+    scatter: float
+    lag1_correlation: float
+    samples: int
+
+    @property
+    def resolved(self) -> bool:
+        """Whether |slope| ≥ :data:`DRIFT_RESOLVED_AT` standard errors (False when the error is unknown)."""
+        error = self.standard_error
+        return bool(np.isfinite(error) and abs(self.slope) >= DRIFT_RESOLVED_AT * error)
+
+    def line(self, times_ps: np.ndarray) -> np.ndarray:
+        """Return the fitted line at ``times_ps`` (ps)."""
+        return self.intercept + self.slope / 1000.0 * np.asarray(times_ps, dtype=float)
+
+    def per_dof(self, dof: int) -> tuple[float, float]:
+        """Slope and standard error divided by ``dof`` degrees of freedom."""
+        return self.slope / dof, self.standard_error / dof
+
+
+#: A drift is stated as a number only when |drift| is at least this many standard errors.
+DRIFT_RESOLVED_AT = 2.0
+
+
+def fit_drift(times_ps: np.ndarray, values: np.ndarray) -> DriftFit:
+    """Fit a line to ``values`` (H − E_ref, kJ/mol) against ``times_ps``; its slope is the drift per ns.
+
+    The one drift fit of the package (runs, comparisons, figures, analyses, benchmarks).
+    The standard error of the slope is that of ordinary least squares with the number of
+    samples replaced by an effective number n_eff = n (1 − ρ)/(1 + ρ), ρ the lag-1
+    autocorrelation of the samples about the line (clipped to [0, 1)): energy samples
+    taken a few steps apart are correlated, and the plain least-squares error would then
+    call a drift resolved that is noise (Santer et al., J. Geophys. Res. 105, 7337 (2000)).
+    SE = √(Σ e² / (n_eff − 2) / Σ (t − t̄)²); infinite when n_eff ≤ 2, NaN for n < 3.
+
+    Raises
+    ------
+    ValueError
+        If times and values differ in length, or a value is not finite.
+    """
+    t = np.asarray(times_ps, dtype=float)
+    y = np.asarray(values, dtype=float)
+    if t.shape != y.shape or t.ndim != 1:
+        raise ValueError(f"times and values must be 1-d of the same length, got {t.shape} and {y.shape}.")
+    if not np.all(np.isfinite(y)):
+        raise ValueError("the energies contain NaN or infinity: the run blew up; no drift can be fitted.")
+    n = t.size
+    if n < 2:
+        nan = float("nan")
+        return DriftFit(nan, nan, nan, nan, nan, n)
+    dt = t - t.mean()
+    s_tt = float(np.dot(dt, dt))
+    slope_per_ps = float(np.dot(dt, y - y.mean()) / s_tt)
+    intercept = float(y.mean() - slope_per_ps * t.mean())
+    e = y - (intercept + slope_per_ps * t)
+    sum_squares = float(np.dot(e, e))
+    rho = float(np.dot(e[:-1], e[1:]) / sum_squares) if sum_squares > 0 else 0.0
+    rho = min(max(rho, 0.0), 1.0 - 1e-12)
+    n_eff = n * (1.0 - rho) / (1.0 + rho)
+    if n < 3:
+        error = float("nan")
+    elif n_eff <= 2.0:
+        error = float("inf")
+    else:
+        error = float(np.sqrt(sum_squares / (n_eff - 2.0) / s_tt)) * 1000.0
+    return DriftFit(slope_per_ps * 1000.0, error, intercept, rms(e), rho, n)
+
+
+def drift_text(drift: float, standard_error: float, unit: str = "") -> str:
+    """Return a drift as printed everywhere: ``-0.043 ± 0.011 kJ/mol/ns`` or ``not resolved (±0.011 …)``.
+
+    A drift smaller than :data:`DRIFT_RESOLVED_AT` standard errors is not shown as a
+    number: the run is too short (or too noisy) to tell it from zero.
+    """
+    suffix = f" {unit}" if unit else ""
+    if not np.isfinite(standard_error):
+        reason = "too few samples" if np.isnan(standard_error) else "samples too correlated"
+        return f"not resolved ({reason})"
+    if abs(drift) < DRIFT_RESOLVED_AT * standard_error:
+        return f"not resolved (±{standard_error:.2g}{suffix})"
+    return f"{drift:+.3g} ± {standard_error:.2g}{suffix}"
+
+
+@dataclass
+class EnergyDrift:
+    """H − E_ref of a run's energy samples: E_ref, the drift fit, RMS and max (kJ/mol, ps, ns).
+
+    E_ref is the total energy of the first sample, the start state. RMS and max
+    |H − E_ref| are over the samples after the first (:func:`residual_statistics`).
+    """
+
+    e_ref: float
+    samples: int
+    duration_ps: float
+    drift_kj_per_mol_per_ns: float
+    drift_standard_error_kj_per_mol_per_ns: float
+    drift_per_dof: float  # kJ/mol/ns per degree of freedom
+    drift_per_dof_standard_error: float
+    drift_resolved: bool
+    scatter_about_fit: float
+    rms_residual: float
+    max_abs_residual: float
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+def energy_drift(times_ps: np.ndarray, total_energies: np.ndarray, dof: int) -> EnergyDrift:
+    """E_ref, drift (:func:`fit_drift`), RMS and max |H − E_ref| of energy samples.
+
+    Parameters
+    ----------
+    times_ps
+        Sample times (ps).
+    total_energies
+        Total energies (kJ/mol); the first is E_ref (the start state). A trace of
+        H − E_ref that starts at 0 gives the same result.
+    dof
+        Degrees of freedom, for the drift per degree of freedom.
+
+    Raises
+    ------
+    ValueError
+        With fewer than two samples, or a value that is not finite.
+    """
+    times_ps = np.asarray(times_ps, dtype=float)
+    total = np.asarray(total_energies, dtype=float)
+    if len(total) < 2:
+        raise ValueError("need at least two energy samples to fit a drift.")
+    residual = total - total[0]
+    fit = fit_drift(times_ps, residual)
+    per_dof, per_dof_error = fit.per_dof(dof)
+    rms_residual, max_abs_residual = residual_statistics(residual)
+    return EnergyDrift(
+        e_ref=float(total[0]),
+        samples=len(total),
+        duration_ps=float(times_ps[-1] - times_ps[0]),
+        drift_kj_per_mol_per_ns=fit.slope,
+        drift_standard_error_kj_per_mol_per_ns=fit.standard_error,
+        drift_per_dof=per_dof,
+        drift_per_dof_standard_error=per_dof_error,
+        drift_resolved=fit.resolved,
+        scatter_about_fit=fit.scatter,
+        rms_residual=rms_residual,
+        max_abs_residual=max_abs_residual,
+    )
 
 
 def masses(system: mm.System) -> np.ndarray:

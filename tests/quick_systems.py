@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import os
+import signal
+
 import openmm.app as app
 
 from openmm_alphaprk.systems import prepare_system
@@ -17,14 +20,27 @@ def quick_system(name: str, cache_dir, reference: bool = False):
 
 
 class StopAt:
-    """An OpenMM reporter that raises KeyboardInterrupt at a step: an interrupted run."""
+    """An OpenMM reporter that interrupts a run at a step.
 
-    def __init__(self, step: int):
+    ``how``: ``"raise"`` raises KeyboardInterrupt after the run's own reports of that
+    step (OpenMM calls this reporter last); ``"before"`` raises it before them (it asks
+    for wrapped positions, so OpenMM calls it first: the step's output is incomplete);
+    ``"signal"`` sends this process SIGINT, which is what Ctrl-C does.
+    """
+
+    def __init__(self, step: int, how: str = "raise"):
         self.step = step
+        self.how = how
 
     def describeNextReport(self, simulation: app.Simulation) -> dict:
         remaining = self.step - simulation.currentStep
-        return {"steps": remaining if remaining > 0 else 10**9, "periodic": None, "include": []}
+        steps = remaining if remaining > 0 else 10**9
+        if self.how == "before":
+            return {"steps": steps, "periodic": True, "include": ["positions"]}
+        return {"steps": steps, "periodic": None, "include": []}
 
     def report(self, simulation, state) -> None:
-        raise KeyboardInterrupt
+        if self.how == "signal":
+            os.kill(os.getpid(), signal.SIGINT)
+        else:
+            raise KeyboardInterrupt

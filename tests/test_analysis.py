@@ -92,6 +92,21 @@ def test_random_walk_msd_gives_the_known_diffusion_coefficient():
     assert msd.results.diffusion_coefficient == pytest.approx(expected, rel=0.03)
 
 
+def test_diffusion_standard_error_is_the_spread_over_independent_walks():
+    """D ± its standard error: the groups' error matches the spread of D over independent random walks."""
+    rng = np.random.default_rng(4)
+    sigma, dt, n_frames, n_particles = 0.3, 0.5, 60, 200
+    results = []
+    for _ in range(12):
+        steps = rng.normal(0.0, sigma, size=(n_frames, n_particles, 3))
+        u = _universe(np.cumsum(steps, axis=0), n_particles, ["O"] * n_particles, dt=dt)
+        results.append(Diffusion(u, "name O", error_groups=10).run().results)
+    d = np.array([r.diffusion_coefficient for r in results])
+    errors = np.array([r.diffusion_coefficient_standard_error for r in results])
+    assert np.median(errors) == pytest.approx(np.std(d, ddof=1), rel=0.5)
+    assert results[0].frames == n_frames and results[0].error_groups == 10
+
+
 def test_ballistic_msd_is_quadratic():
     """Free flight x = x0 + v t: MSD(t) = <|v|²> t² exactly."""
     rng = np.random.default_rng(4)

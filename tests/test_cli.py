@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import signal
 import subprocess
 import sys
 import time
@@ -12,6 +13,7 @@ from pathlib import Path
 
 import pytest
 
+from openmm_alphaprk.observables import drift_text
 from openmm_alphaprk.systems.definitions import DEFINITIONS_DIR
 
 SCRIPT = Path(sys.executable).with_name("alphaprk")
@@ -70,11 +72,17 @@ def test_help_explains_every_option_with_units(tmp_path, cache):
         ("--energy-interval", "steps"),
         ("--trajectory-interval", "steps"),
         ("--checkpoint-interval", "steps"),
+        ("--checkpoint-seconds", "seconds"),
+        ("--controller-interval", "steps"),
         ("--cache-dir", "ALPHAPRK_CACHE_DIR"),
     ):
         assert option in run_help and unit in run_help
     compare_help = alphaprk("compare", "--help", cwd=tmp_path, env_cache=cache).stdout
     assert "kJ/mol/ns per DOF" in compare_help and "tip3p-3nm" in compare_help
+    # where the output goes when -o is not given
+    flat = " ".join(compare_help.split())
+    assert "alphaprk-compare-<system> in the current directory" in flat, flat
+    assert "alphaprk-run-<system>-<integrator> in the current directory" in " ".join(run_help.split())
     analyze_help = alphaprk("analyze", "--help", cwd=tmp_path, env_cache=cache).stdout
     assert "--rdf-max" in analyze_help and "nm" in analyze_help
     module = subprocess.run(
@@ -125,6 +133,21 @@ def test_run_then_analyze(tmp_path, cache, quick_definition):
     assert "O-O RDF: first peak" in analysis.stdout and "drift" in analysis.stdout
     # issue 15: rounded fit window, labelled progress bars, why the DCD's constraint error is larger
     assert re.search(r"fit over lags \d+(\.\d{1,3})?-\d+(\.\d{1,3})? ps\)", analysis.stdout), analysis.stdout
+    # D with its standard error and the frames it is from; the drift with its standard error
+    analysed = json.loads((tmp_path / "out" / "analysis.json").read_text(encoding="utf-8"))
+    msd, energy = analysed["msd"], analysed["energy"]
+    d, error = (
+        msd["diffusion_coefficient_1e-5_cm2_per_s"],
+        msd["diffusion_coefficient_standard_error_1e-5_cm2_per_s"],
+    )
+    assert f"D = {d:.3g} ± {error:.2g} x 1e-5 cm^2/s from 4 frames" in analysis.stdout, analysis.stdout
+    assert msd["frames"] == 4 and error > 0
+    drift = drift_text(energy["drift_per_dof"], energy["drift_per_dof_standard_error"], "kJ/mol/ns")
+    assert f"drift/DOF {drift};" in analysis.stdout and "±" in drift
+    assert (
+        energy["drift_per_dof"] == summary["drift_per_dof"]
+        and energy["rms_residual"] == summary["rms_residual"]
+    )
     assert "constraint deviation: 100%" in analysis.stderr and "MSD (EinsteinMSD): 100%" in analysis.stderr
     assert "float32" in analysis.stdout and "full-precision final state" in analysis.stdout
     note = json.loads((tmp_path / "out" / "analysis.json").read_text(encoding="utf-8"))["constraints"]["note"]
@@ -295,6 +318,82 @@ def test_output_directory_with_a_different_run_is_refused(tmp_path, cache, quick
     )
     assert result.returncode == 2 and "not a run directory" in result.stderr
     assert (tmp_path / "papers" / "draft.tex").read_text(encoding="utf-8") == "keep me"
+
+
+def test_ctrl_c_checkpoints_and_says_from_which_step_the_same_command_resumes(tmp_path, cache):
+    """SIGINT (Ctrl-C) long before the first step-count checkpoint: the work is kept, and said to be."""
+    source = (DEFINITIONS_DIR / "water-cluster.toml").read_text(encoding="utf-8")
+    definition = tmp_path / "quick-cluster.toml"
+    definition.write_text(source.replace("langevin_steps = 1000", "langevin_steps = 10"), encoding="utf-8")
+    args = [SCRIPT, "run", definition, "rattle", "--platform", "Reference", "--steps", "3000"]
+    args += [
+        "--checkpoint-interval",
+        "100000",
+        "--energy-interval",
+        "10",
+        "--trajectory-interval",
+        "50",
+        "--quiet",
+    ]
+    env = {**os.environ, "ALPHAPRK_CACHE_DIR": str(cache)}
+    subprocess.run([*map(str, args), "-o", "whole"], cwd=tmp_path, env=env, check=True, capture_output=True)
+    process = subprocess.Popen(
+        [*map(str, args), "-o", "parts"], cwd=tmp_path, env=env, stderr=subprocess.PIPE, text=True
+    )
+    energies = tmp_path / "parts" / "energies.csv"
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and process.poll() is None:
+        if energies.is_file() and len(energies.read_text(encoding="utf-8").splitlines()) > 30:
+            break
+        time.sleep(0.05)
+    process.send_signal(signal.SIGINT)
+    _, stderr = process.communicate(timeout=120)
+    assert process.returncode == 130, stderr
+    found = re.search(
+        r"interrupted at step (\d+) of 3000; checkpoint written: "
+        r"the same command resumes it from step (\d+)\.",
+        stderr,
+    )
+    assert found and found.group(1) == found.group(2), stderr
+    assert int(found.group(1)) % 10 == 0 and 290 <= int(found.group(1)) < 3000
+    assert (tmp_path / "parts" / "checkpoint.chk").is_file()
+    alphaprk(*args[1:], "-o", "parts", cwd=tmp_path, env_cache=cache)
+    summary = json.loads((tmp_path / "parts" / "summary.json").read_text(encoding="utf-8"))
+    assert summary["steps_this_call"] == 3000 - int(found.group(1))
+    assert energies.read_text(encoding="utf-8") == (tmp_path / "whole" / "energies.csv").read_text(
+        encoding="utf-8"
+    )
+
+
+def test_interrupt_messages_say_what_the_same_command_does(tmp_path, monkeypatch, capsys):
+    """The CLI prints the run's own account of an interruption, and otherwise what resuming does."""
+    import openmm_alphaprk.runs as runs
+    from openmm_alphaprk.cli import main
+    from openmm_alphaprk.runs import RunInterrupted
+
+    def no_checkpoint(*args, **kwargs):
+        raise RunInterrupted(
+            "run in x interrupted at step 6 of 30; no checkpoint yet: "
+            "the same command starts it again from step 0.",
+            tmp_path,
+            6,
+            None,
+        )
+
+    monkeypatch.setattr(runs, "run_nve", no_checkpoint)
+    assert main(["run", "water-cluster", "rattle", "-o", str(tmp_path / "x"), "--quiet"]) == 130
+    assert capsys.readouterr().err == (
+        "alphaprk run: run in x interrupted at step 6 of 30; no checkpoint yet: the same command starts it "
+        "again from step 0.\n"
+    )
+
+    def elsewhere(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(runs, "run_nve", elsewhere)
+    assert main(["run", "water-cluster", "rattle", "-o", str(tmp_path / "x"), "--quiet"]) == 130
+    err = capsys.readouterr().err
+    assert "interrupted while no run was stepping" in err and "from step 0 where it has none" in err
 
 
 def test_killed_run_resumes_to_the_uninterrupted_result(tmp_path, cache):

@@ -10,10 +10,11 @@ import pytest
 from quick_systems import StopAt, quick_system
 
 from openmm_alphaprk.integrators.names import UnknownIntegratorError, make_integrator, parse_integrator
-from openmm_alphaprk.runs import RunFailedError, run_nve, rundir
+from openmm_alphaprk.runs import RunFailedError, RunInterrupted, run_nve, rundir
 from openmm_alphaprk.runs.rundir import RunDirectoryError
 from openmm_alphaprk.systems import UnknownSystemError
 from openmm_alphaprk.workflows import compare
+from openmm_alphaprk.workflows.comparison import format_table
 
 REFERENCE_RUN = dict(
     platform="Reference", energy_interval=2, trajectory_interval=4, checkpoint_interval=10, progress=False
@@ -62,26 +63,47 @@ def test_alpha_zero_gives_rattle_energies(box, tmp_path):
 
 
 @pytest.mark.parametrize(
-    "system, integrator, extra",
+    "system, integrator, extra, stop, resumes_from",
     [
-        ("box", "rattle", {}),
-        ("cluster", "energy", {}),
-        ("cluster", "rattle", {"velocity_interval": 3, "velocity_seed": 11}),
+        # raised after the step's reports: the files are complete, so step 17 is checkpointed
+        ("box", "rattle", {}, StopAt(17), 17),
+        # raised before the reports of step 16: no checkpoint of it; the last one (step 10) stays
+        ("cluster", "energy", {}, StopAt(16, "before"), 10),
+        # Ctrl-C (SIGINT) at step 13 takes effect at the end of the energy interval, step 14
+        ("cluster", "rattle", {"velocity_interval": 3, "velocity_seed": 11}, StopAt(13, "signal"), 14),
+        # Ctrl-C before the first step-count checkpoint (step 1000) is not lost: it resumes from 14
+        ("cluster", "energy", {"checkpoint_interval": 1000}, StopAt(13, "signal"), 14),
+        # incomplete output and no checkpoint yet: the run starts again from step 0
+        ("cluster", "rattle", {}, StopAt(6, "before"), None),
     ],
 )
-def test_interrupted_run_resumes_to_the_uninterrupted_result(request, tmp_path, system, integrator, extra):
+def test_interrupted_run_resumes_to_the_uninterrupted_result(
+    request, tmp_path, system, integrator, extra, stop, resumes_from
+):
     """On the Reference platform (deterministic); the energy mode keeps E_ref over the restart."""
     prepared = request.getfixturevalue(system)
+    options = REFERENCE_RUN | extra
     whole, parts = tmp_path / "whole", tmp_path / "parts"
-    run_nve(prepared, integrator, whole, steps=30, **REFERENCE_RUN, **extra)
-    with pytest.raises(KeyboardInterrupt):
-        run_nve(prepared, integrator, parts, steps=30, extra_reporters=[StopAt(17)], **REFERENCE_RUN, **extra)
+    run_nve(prepared, integrator, whole, steps=30, **options)
+    with pytest.raises(RunInterrupted) as interrupted:
+        run_nve(prepared, integrator, parts, steps=30, extra_reporters=[stop], **options)
+    assert isinstance(interrupted.value, KeyboardInterrupt)
+    assert interrupted.value.checkpoint_step == resumes_from
+    message = str(interrupted.value)
+    assert message.startswith(f"run in {parts} interrupted at step ")
+    if resumes_from is None:
+        assert message.endswith("no checkpoint yet: the same command starts it again from step 0."), message
+        assert not (parts / rundir.CHECKPOINT_FILE).exists()
+    else:
+        assert message.endswith(
+            f"resumes it from step {resumes_from}"
+            + ("." if stop.how != "before" else ", its last checkpoint.")
+        ), message
     assert not (parts / rundir.SUMMARY_FILE).exists()
-    # what the interrupted run left is readable, and goes past its last checkpoint (step 10)
-    assert rundir.read_energies(parts / rundir.ENERGIES_FILE)[-1, 0] == 16
-    assert len(rundir.open_universe(parts).trajectory) == 4
-    summary = run_nve(prepared, integrator, parts, steps=30, **REFERENCE_RUN, **extra)
-    assert summary.steps == 30 and summary.steps_this_call == 20
+    # what the interrupted run left is readable
+    assert rundir.read_energies(parts / rundir.ENERGIES_FILE)[-1, 0] <= stop.step + 1
+    summary = run_nve(prepared, integrator, parts, steps=30, **options)
+    assert summary.steps == 30 and summary.steps_this_call == 30 - (resumes_from or 0)
     if "velocity_interval" in extra:  # velocities.dcd cut back to the checkpoint, then continued
         v_whole = rundir.open_universe(whole, rundir.VELOCITIES_FILE)
         v_parts = rundir.open_universe(parts, rundir.VELOCITIES_FILE)
@@ -96,7 +118,32 @@ def test_interrupted_run_resumes_to_the_uninterrupted_result(request, tmp_path, 
     np.testing.assert_array_equal(u_parts.trajectory.timeseries(), u_whole.trajectory.timeseries())
     final = json.loads((whole / rundir.SUMMARY_FILE).read_text(encoding="utf-8"))
     assert summary.e_ref == final["e_ref"] and summary.rms_residual == final["rms_residual"]
+    assert summary.drift_per_dof == final["drift_per_dof"]
     assert summary.force_evaluations_per_step == final["force_evaluations_per_step"]
+    assert summary.controller == final["controller"]
+
+
+def test_checkpoints_are_also_written_by_wall_time(cluster, tmp_path):
+    """checkpoint_seconds: a checkpoint at the end of an energy interval once that much time has passed."""
+    failing = dict(steps=30, extra_reporters=[_FailAt(17)], **REFERENCE_RUN | {"checkpoint_interval": 1000})
+    with pytest.raises(RunFailedError, match="no checkpoint was written"):
+        run_nve(cluster, "rattle", tmp_path / "steps only", **failing)
+    with pytest.raises(RunFailedError, match=r"the last checkpoint, .*, is of step 16\.$"):
+        run_nve(cluster, "rattle", tmp_path / "by time", checkpoint_seconds=1e-6, **failing)
+
+
+class _FailAt:
+    """A reporter that fails (ValueError, as a NaN does) at a step."""
+
+    def __init__(self, step: int):
+        self.step = step
+
+    def describeNextReport(self, simulation) -> dict:
+        remaining = self.step - simulation.currentStep
+        return {"steps": remaining if remaining > 0 else 10**9, "periodic": None, "include": []}
+
+    def report(self, simulation, state) -> None:
+        raise ValueError("stopped by the test")
 
 
 def test_finished_run_is_reported_and_can_be_extended(box, tmp_path):
@@ -194,7 +241,8 @@ def test_longer_run_is_refused_not_reported_as_shorter(cluster, tmp_path):
         compare(cluster, ["rattle"], tmp_path / "cmp", steps=10, plot=False, **REFERENCE_RUN)
     # interrupted after its checkpoint at step 10: asking for 5 steps is refused, 30 resumes
     with pytest.raises(KeyboardInterrupt):
-        run_nve(cluster, "rattle", tmp_path / "cut", steps=30, extra_reporters=[StopAt(17)], **REFERENCE_RUN)
+        stop = StopAt(16, "before")
+        run_nve(cluster, "rattle", tmp_path / "cut", steps=30, extra_reporters=[stop], **REFERENCE_RUN)
     with pytest.raises(RunDirectoryError, match="holds a run of 10 steps, longer than the 5 asked for"):
         run_nve(cluster, "rattle", tmp_path / "cut", steps=5, **REFERENCE_RUN)
     assert run_nve(cluster, "rattle", tmp_path / "cut", steps=30, **REFERENCE_RUN).steps == 30
@@ -302,3 +350,84 @@ def _final_velocities(prepared, directory):
     simulation.loadCheckpoint(str(directory / rundir.CHECKPOINT_FILE))
     state = simulation.context.getState(getVelocities=True)
     return state.getVelocities(asNumpy=True).value_in_unit(unit.nanometers / unit.picoseconds)
+
+
+def test_compare_states_one_rms_and_one_drift_in_table_json_and_figure(cluster, tmp_path, monkeypatch):
+    """The same numbers, printed the same way, in the table, each summary.json and the figure."""
+    pytest.importorskip("matplotlib")
+    from openmm_alphaprk.integrators.names import label
+    from openmm_alphaprk.observables import drift_text
+    from openmm_alphaprk.workflows import plots
+
+    built = []
+    build = plots.build_energy_residual_figure
+    monkeypatch.setattr(
+        plots, "build_energy_residual_figure", lambda *a, **k: built.append(build(*a, **k)) or built[-1]
+    )
+    result = compare(cluster, ["rattle", "energy"], tmp_path, steps=60, **REFERENCE_RUN)
+    (figure,) = built
+    legends = [
+        text.get_text() for ax in figure.axes if ax.get_legend() for text in ax.get_legend().get_texts()
+    ]
+    rows = {line.split()[0]: line for line in result.table.splitlines()[3:5]}
+    for name in ("rattle", "energy"):
+        stored = json.loads((tmp_path / name / rundir.SUMMARY_FILE).read_text(encoding="utf-8"))
+        rms = f"{stored['rms_residual']:.3g}"
+        drift = (stored["drift_per_dof"], stored["drift_per_dof_standard_error"])
+        assert f" {drift_text(*drift)} " in rows[name] and f" {rms} " in rows[name], rows[name]
+        assert f"{label(name)}: RMS {rms} kJ/mol" in legends, legends
+        assert f"drift/DOF {drift_text(*drift, 'kJ/mol/ns')}" in legends, legends
+    assert "E_ref = total energy of the start state" in result.table
+    assert "fell back = the step ended with |H - E_ref| above the energy tolerance" in result.table
+
+
+def test_a_run_too_short_to_resolve_its_drift_says_so(cluster, tmp_path):
+    result = compare(cluster, ["rattle"], tmp_path, steps=8, plot=False, **REFERENCE_RUN)
+    (summary,) = result.summaries
+    assert (
+        not summary.drift_resolved and abs(summary.drift_per_dof) < 2 * summary.drift_per_dof_standard_error
+    )
+    row = result.table.splitlines()[3]
+    assert f"not resolved (±{summary.drift_per_dof_standard_error:.2g})" in row, row
+    assert f"{summary.drift_per_dof:+.3g}" not in row
+
+
+def test_energy_mode_summary_uses_the_integrators_totals_over_every_step(cluster, tmp_path, monkeypatch):
+    """controller.csv rows are samples (every energy interval); fractions and, when the integrator
+    accumulates them, RMS and max |H - E_ref| cover every step."""
+    from openmm_alphaprk import AlphaRattleIntegrator
+    from openmm_alphaprk.runs.reporters import EVERY_STEP, ROWS
+
+    summary = run_nve(
+        cluster, "energy", tmp_path / "plain", steps=20, **REFERENCE_RUN | {"energy_interval": 5}
+    )
+    rows = np.loadtxt(tmp_path / "plain" / rundir.CONTROLLER_FILE, delimiter=",", skiprows=1)
+    assert rows[:, 0].tolist() == [5, 10, 15, 20]  # the default: the energy interval, no single-stepping
+    assert (summary.controller["steps"], summary.controller["rows"]) == (20, 4)
+    totals = AlphaRattleIntegrator.controller_totals
+    if summary.controller["residuals_over"] == ROWS:
+        assert "RMS |H - E_ref|" not in format_table([summary]).split("energy (energy mode)")[1]
+    every = {"rms_residual": 0.0123, "max_abs_residual": 0.0456}
+    monkeypatch.setattr(AlphaRattleIntegrator, "controller_totals", lambda self: totals(self) | every)
+    summary = run_nve(
+        cluster, "energy", tmp_path / "every", steps=20, **REFERENCE_RUN | {"energy_interval": 5}
+    )
+    c = summary.controller
+    assert (c["rms_residual"], c["max_abs_residual"], c["residuals_over"]) == (0.0123, 0.0456, EVERY_STEP)
+    assert "energy (energy mode), over all 20 steps: RMS |H - E_ref| 0.0123 kJ/mol, max 0.0456 kJ/mol" in (
+        " ".join(format_table([summary]).split())
+    )
+
+
+def test_a_finished_run_with_an_older_summary_is_summarized_again(cluster, tmp_path):
+    """A summary.json without the newer fields (the drift's standard error) is rewritten, not returned as is."""
+    first = run_nve(cluster, "energy", tmp_path, steps=20, **REFERENCE_RUN)
+    path = tmp_path / rundir.SUMMARY_FILE
+    old = json.loads(path.read_text(encoding="utf-8"))
+    for key in ("drift_per_dof_standard_error", "drift_resolved"):
+        del old[key]
+    del old["controller"]["residuals_over"]
+    path.write_text(json.dumps(old), encoding="utf-8")
+    again = run_nve(cluster, "energy", tmp_path, steps=20, **REFERENCE_RUN)
+    assert again == first  # the same numbers, from the same files and final checkpoint
+    assert json.loads(path.read_text(encoding="utf-8")) == first.as_dict()

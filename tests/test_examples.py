@@ -47,3 +47,4 @@ def test_compare_script(tmp_path, env):
 def test_analysis_script(tmp_path, env):
     out = _run("analyze_run.py", "--steps", "40", cwd=tmp_path, env=env)
     assert "O-O RDF: first peak" in out and "diffusion: D =" in out and "drift_per_dof" in out
+    assert "from 4 frames" in out and "drift/DOF: " in out and " ± " in out

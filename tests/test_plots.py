@@ -8,7 +8,7 @@ import pytest
 pytest.importorskip("matplotlib")
 
 from openmm_alphaprk.integrators.names import label  # noqa: E402
-from openmm_alphaprk.observables import drift_per_dof  # noqa: E402
+from openmm_alphaprk.observables import drift_text, fit_drift, residual_statistics  # noqa: E402
 from openmm_alphaprk.workflows.plots import (  # noqa: E402
     NOT_COMPARABLE,
     build_energy_residual_figure,
@@ -96,10 +96,42 @@ def test_panels_are_labelled_from_the_vocabulary_with_drift_and_noise(figure):
         ax = _panel(figure, name)
         assert ax.get_title().startswith(label(name))
         texts = [text.get_text() for text in ax.get_legend().get_texts()]
-        drift = drift_per_dof(times, residuals, 1)
-        assert any(f"drift {drift:+.3g} kJ/mol/ns" in text for text in texts), texts
+        fit = fit_drift(times, residuals)
+        drift = drift_text(fit.slope / 444, fit.standard_error / 444, "kJ/mol/ns")
+        assert f"drift/DOF {drift}" in texts, texts
+        assert "±" in drift  # every drift comes with its standard error
         if name != "verlet":
-            assert any("σ" in text and "kJ/mol" in text for text in texts), texts
+            assert any("σ" in text and "scatter about the drift line" in text for text in texts), texts
+
+
+def test_log_panel_states_the_rms_of_the_tables():
+    """The legend's RMS is that of the samples after the start (the tables' number), not of all samples."""
+    traces = _traces(("rattle", "energy4"), samples=11)  # few samples: leaving out the 0 at t = 0 shows
+    fig = build_energy_residual_figure(traces)
+    try:
+        (log_ax,) = [ax for ax in fig.axes if ax.get_yscale() == "log"]
+        texts = [text.get_text() for text in log_ax.get_legend().get_texts()]
+        for name, (_, residuals) in traces.items():
+            rms = residual_statistics(residuals)[0]
+            assert f"{label(name)}: RMS {rms:.3g} kJ/mol" in texts, texts
+            assert f"{np.sqrt(np.mean(residuals**2)):.3g}" != f"{rms:.3g}"
+    finally:
+        pyplot().close(fig)
+
+
+def test_an_unresolved_drift_is_not_shown_as_a_number():
+    rng = np.random.default_rng(2)
+    times = np.linspace(0.0, 0.2, 11)
+    residuals = rng.normal(0.0, 1.0, times.size)
+    residuals[0] = 0.0
+    fig = build_energy_residual_figure({"rattle": (times, residuals)})
+    try:
+        texts = [text.get_text() for text in _panel(fig, "rattle").get_legend().get_texts()]
+        fit = fit_drift(times, residuals)
+        assert not fit.resolved
+        assert f"drift not resolved (±{fit.standard_error:.2g} kJ/mol/ns)" in texts, texts
+    finally:
+        pyplot().close(fig)
 
 
 def test_legends_do_not_hide_the_data(figure):

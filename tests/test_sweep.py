@@ -80,6 +80,11 @@ def test_grid_expansion():
     assert kwargs["energy_interval"] == 30 and kwargs["velocity_interval"] == 6  # 20 fs, 4 fs of 2/3 fs
     two = next(c for c in config.cells if c.timestep_fs == 2)
     assert two.kwargs()["energy_interval"] == 10 and two.steps == 500
+    assert "controller_interval" not in kwargs and kwargs["checkpoint_seconds"] == 60.0  # the defaults
+    run = {"duration_ps": 1, "controller_interval_fs": 40, "checkpoint_seconds": 5}
+    grid = [{"systems": ["water-cluster"], "integrators": ["energy4"], "timesteps_fs": ["2/3"]}]
+    (cell,) = parse_config({"output": "o", "run": run, "grid": grid}, base="/tmp/x").cells
+    assert cell.kwargs()["controller_interval"] == 60 and cell.kwargs()["checkpoint_seconds"] == 5
 
 
 @pytest.mark.parametrize(

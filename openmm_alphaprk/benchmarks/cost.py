@@ -19,12 +19,11 @@ from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass
 from functools import partial
 
-import numpy as np
 import openmm as mm
 
 from ..integrators import StepProgram
 from ..integrators.names import label, make_integrator
-from ..observables import total_energy
+from ..observables import rms, total_energy
 from ..systems import PreparedSystem, build_water_box
 
 
@@ -199,7 +198,7 @@ def _energy_rms(box: PreparedSystem, integrator: mm.Integrator, context_args: tu
     for _ in range(steps):
         integrator.step(1)
         residuals.append(total_energy(context) - e0)
-    return float(np.sqrt(np.mean(np.square(residuals))))
+    return rms(residuals)
 
 
 def _force_evaluations(integrator: mm.Integrator) -> int | None:

@@ -28,7 +28,7 @@ import openmm.unit as unit
 from tqdm import tqdm
 
 from ..integrators.names import label, make_integrator
-from ..observables import alpha_percentiles, degrees_of_freedom, drift_per_dof, total_energy
+from ..observables import alpha_percentiles, degrees_of_freedom, fit_drift, rms, total_energy
 from ..systems import PreparedSystem
 from .cost import (
     _context,
@@ -42,10 +42,11 @@ class EnergyRow:
 
     name: str
     steps: int
-    drift_per_dof: float  # kJ/mol/ns per degree of freedom, linear fit
+    drift_per_dof: float  # kJ/mol/ns per degree of freedom, linear fit (observables.fit_drift)
     rms_residual: float
     max_abs_residual: float
     force_evaluations_per_step: float
+    drift_per_dof_standard_error: float = float("nan")
     ms_per_step: float = float("nan")
     time_ratio: float = float("nan")
     alpha_percentiles: dict[str, float] = field(default_factory=dict)
@@ -126,11 +127,13 @@ def _run_one(
             break
     done = np.isfinite(residuals)
     times = (np.arange(samples) + 1) * step_ps
+    drift, drift_error = fit_drift(times[done], residuals[done]).per_dof(dof)
     row = EnergyRow(
         name=name,
         steps=int(done.sum()) * every,
-        drift_per_dof=drift_per_dof(times[done], residuals[done], dof) if done.sum() > 1 else float("nan"),
-        rms_residual=float(np.sqrt(np.mean(residuals[done] ** 2))) if done.any() else float("nan"),
+        drift_per_dof=drift,
+        drift_per_dof_standard_error=drift_error,
+        rms_residual=rms(residuals[done]),
         max_abs_residual=float(np.max(np.abs(residuals[done]))) if done.any() else float("nan"),
         force_evaluations_per_step=_evaluations_per_step(integrator) * spec.substeps,
         blew_up_at_step=blew_up,

@@ -15,7 +15,7 @@ from functools import partial
 import numpy as np
 
 from ..integrators.names import label, make_integrator
-from ..observables import degrees_of_freedom
+from ..observables import degrees_of_freedom, drift_text
 from ..systems import PreparedSystem, build_water_box, list_systems, prepare_system
 from .cost import add_box_arguments, build_platform, platform_properties
 from .energy import (
@@ -34,7 +34,8 @@ def format_table(rows: Sequence[EnergyRow], header: str = "") -> str:
     """Format the rows as a plain-text table."""
     lines = [header] if header else []
     lines.append(
-        f"{'integrator':<16} {'steps':>6} {'drift/dof':>10} {'RMS(H-Eref)':>11} {'max|H-Eref|':>11} "
+        f"{'integrator':<16} {'steps':>6} {'drift/DOF kJ/mol/ns ± SE':<26} {'RMS(H-Eref)':>11} "
+        f"{'max|H-Eref|':>11} "
         f"{'evals/step':>10} {'time ratio':>10} {'within tol':>10} {'fell back':>9} {'at bound':>8} "
         f"{'E_ref':>5}  alpha* p5/p50/p95"
     )
@@ -44,8 +45,9 @@ def format_table(rows: Sequence[EnergyRow], header: str = "") -> str:
             if row.alpha_percentiles
             else "-"
         )
+        drift = drift_text(row.drift_per_dof, row.drift_per_dof_standard_error)
         lines.append(
-            f"{row.name:<16} {row.steps:>6} {row.drift_per_dof:>10.2e} {row.rms_residual:>11.4f} "
+            f"{row.name:<16} {row.steps:>6} {drift:<26} {row.rms_residual:>11.4f} "
             f"{row.max_abs_residual:>11.4f} {row.force_evaluations_per_step:>10.2f} {row.time_ratio:>10.2f} "
             f"{row.fraction_within_tolerance:>10.3f} {row.fraction_fallen_back:>9.3f} "
             f"{row.fraction_at_bound:>8.3f} "

@@ -5,7 +5,8 @@
 - :mod:`.quantities`: times and lengths with units (``2fs``, ``8A``).
 
 :func:`main` runs a command and turns the errors the user can fix into one line on
-stderr (exit status 2), a run that blew up into exit status 1.
+stderr (exit status 2), a run that blew up into exit status 1, Ctrl-C into exit status
+130 with a line that says what the same command will do.
 """
 
 from __future__ import annotations
@@ -40,11 +41,23 @@ _INPUT_ERRORS = (
 )
 
 
+#: What the same command does after a Ctrl-C that came while no run was stepping.
+_RESUMES = (
+    "; the same command resumes each unfinished run from its last checkpoint (from step 0 where it has "
+    "none) and reports finished ones."
+)
+_INTERRUPTED = {
+    "run": " while no run was stepping" + _RESUMES,
+    "compare": " while no run was stepping" + _RESUMES,
+    "sweep": "; the same command skips finished cells and resumes the others from their last checkpoints.",
+}
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``alphaprk`` console script."""
     parser = build_parser()
     args = parser.parse_args(argv)
-    from ..runs import RunFailedError
+    from ..runs import RunFailedError, RunInterrupted
 
     if os.environ.get("ALPHAPRK_DEBUG"):  # full tracebacks
         return COMMANDS[args.command](args)
@@ -59,10 +72,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except _INPUT_ERRORS as error:
         print(f"alphaprk {args.command}: error: {error}", file=sys.stderr)
         return 2
+    except RunInterrupted as interrupt:  # says from which step the same command resumes
+        print(f"alphaprk {args.command}: {interrupt}", file=sys.stderr)
+        return 130
     except KeyboardInterrupt:
-        print(
-            f"alphaprk {args.command}: interrupted; run the same command again to resume from the "
-            "last checkpoint.",
-            file=sys.stderr,
-        )
+        print(f"alphaprk {args.command}: interrupted{_INTERRUPTED.get(args.command, '.')}", file=sys.stderr)
         return 130

@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 from ..integrators.names import parse_integrator
+from ..observables import drift_text
 from ..runs.options import DEFAULTS, RunOptions
 from .parser import BENCHMARKS
 from .quantities import QuantityError, parse_length, parse_time
@@ -35,6 +36,8 @@ def _run_options(args) -> RunOptions:
         energy_interval=args.energy_interval,
         trajectory_interval=args.trajectory_interval,
         checkpoint_interval=args.checkpoint_interval,
+        controller_interval=args.controller_interval,
+        checkpoint_seconds=args.checkpoint_seconds,
         cache_dir=args.cache_dir,
         progress=not args.quiet,
     )
@@ -120,9 +123,10 @@ def cmd_analyze(args) -> int:
 def _print_analysis(result: dict) -> None:
     """Print one line per analysis of :func:`~openmm_alphaprk.workflows.analyze_run`, then the notes."""
     energy = result["energy"]
+    drift = drift_text(energy["drift_per_dof"], energy["drift_per_dof_standard_error"], "kJ/mol/ns")
     print(
-        f"energy: drift {energy['drift_per_dof']:.3e} kJ/mol/ns per DOF, RMS |H - E_ref| "
-        f"{energy['rms_residual']:.4f} kJ/mol, max {energy['max_abs_residual']:.4f} kJ/mol "
+        f"energy: E_ref (total energy of the start state) {energy['e_ref']:.6g} kJ/mol; drift/DOF {drift}; "
+        f"RMS |H - E_ref| {energy['rms_residual']:.3g} kJ/mol, max {energy['max_abs_residual']:.3g} kJ/mol "
         f"({energy['samples']} samples over {energy['duration_ps']:g} ps)"
     )
     if "constraints" in result:
@@ -144,8 +148,10 @@ def _print_analysis(result: dict) -> None:
         m = result["msd"]
         first, last = m["fit_window_ps"]
         print(
-            f"MSD: D = {m['diffusion_coefficient_1e-5_cm2_per_s']:.3g} x 1e-5 cm^2/s "
-            f"(fit over lags {first:.3g}-{last:.3g} ps)"
+            f"MSD: D = {m['diffusion_coefficient_1e-5_cm2_per_s']:.3g} "
+            f"± {m['diffusion_coefficient_standard_error_1e-5_cm2_per_s']:.2g} x 1e-5 cm^2/s from "
+            f"{m['frames']} frames (fit over lags {first:.3g}-{last:.3g} ps); ± = standard error over "
+            f"{m['error_groups']} groups of molecules; a short run's D is not converged"
         )
     for note in result["notes"]:
         print(f"note: {note}")

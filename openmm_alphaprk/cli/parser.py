@@ -58,9 +58,12 @@ def _add_run_parser(sub) -> None:
         help="one NVE run of a system with one integrator",
         description=(
             "Run NVE dynamics and write run.json, energies.csv (step, time ps, potential/kinetic/total "
-            "energy kJ/mol, temperature K), controller.csv (energy mode: alpha*, H - E_ref per step), "
+            "energy kJ/mol, temperature K), controller.csv (energy mode: alpha*, H - E_ref, fallback of "
+            "sampled steps), "
             "trajectory.dcd (unwrapped), checkpoint.chk and summary.json to the output directory, and print "
-            "the summary as a table (the columns of `alphaprk compare`; --json for JSON). Running the same "
+            "the summary as a table (the columns of `alphaprk compare`; --json for JSON). The output "
+            "directory is alphaprk-run-<system>-<integrator> in the current directory unless -o names "
+            "another. Running the same "
             "command again resumes an interrupted run, or extends a finished one with a larger --steps; a "
             "directory holding a different or a longer run is refused."
         ),
@@ -69,7 +72,10 @@ def _add_run_parser(sub) -> None:
     run.add_argument("system", help="system name (see `alphaprk systems`) or path to a .toml definition")
     run.add_argument("integrator", help=f"one of {INTEGRATOR_NAMES} (see below)")
     run.add_argument(
-        "-o", "--output", default=None, help="run directory (default alphaprk-run-<system>-<integrator>)"
+        "-o",
+        "--output",
+        default=None,
+        help="run directory (default: alphaprk-run-<system>-<integrator> in the current directory)",
     )
     run.add_argument(
         "--json",
@@ -85,9 +91,11 @@ def _add_compare_parser(sub) -> None:
         help="several integrators from the same start: table and H - E_ref figure",
         description=(
             "Run every integrator from the same equilibrated state (one run directory each, resumable), "
-            "print a table (drift kJ/mol/ns per DOF from a linear fit, RMS and max |H - E_ref| kJ/mol, "
-            "max relative constraint error, force evaluations per step, ns/day) and write "
-            "comparison.json, table.txt and energy_residuals.png. " + VERLET_NOTE
+            "print a table (drift kJ/mol/ns per DOF from a linear fit with its standard error, RMS and max "
+            "|H - E_ref| kJ/mol with E_ref the total energy of the start state, max relative constraint "
+            "error, force evaluations per step, ns/day) and write comparison.json, table.txt and "
+            "energy_residuals.png into the output folder, by default alphaprk-compare-<system> in the "
+            "current directory (-o to choose another). " + VERLET_NOTE
         ),
         epilog=f"Integrators: {INTEGRATOR_HELP}.",
     )
@@ -103,7 +111,10 @@ def _add_compare_parser(sub) -> None:
         f"{' '.join(DEFAULT_INTEGRATORS)})",
     )
     comp.add_argument(
-        "-o", "--output", default=None, help="output folder (default alphaprk-compare-<system>)"
+        "-o",
+        "--output",
+        default=None,
+        help="output folder (default: alphaprk-compare-<system> in the current directory, created there)",
     )
     comp.add_argument("--no-plot", action="store_true", help="skip the figure (no matplotlib needed)")
     _add_run_options(comp)
@@ -218,6 +229,12 @@ def _add_run_options(parser: argparse.ArgumentParser) -> None:
         help="relative tolerance of SHAKE/SETTLE/CCMA and velocity constraints "
         f"(dimensionless; default {tolerance})",
     )
+    _add_interval_options(parser)
+    _add_common(parser)
+
+
+def _add_interval_options(parser: argparse.ArgumentParser) -> None:
+    """Add the intervals (steps) and the checkpoint time of :class:`~openmm_alphaprk.runs.RunOptions`."""
     parser.add_argument(
         "--energy-interval",
         type=positive,
@@ -232,13 +249,27 @@ def _add_run_options(parser: argparse.ArgumentParser) -> None:
         help=f"steps between DCD frames (default {DEFAULTS.trajectory_interval})",
     )
     parser.add_argument(
+        "--controller-interval",
+        type=positive,
+        default=DEFAULTS.controller_interval,
+        help="energy mode: steps between rows of controller.csv (default: the energy interval; 1 records "
+        "every step but steps one step at a time; statistics over every step come from the integrator)",
+    )
+    parser.add_argument(
         "--checkpoint-interval",
         type=positive,
         default=DEFAULTS.checkpoint_interval,
         help="steps between checkpoints; an interrupted run resumes from the last one "
         f"(default {DEFAULTS.checkpoint_interval})",
     )
-    _add_common(parser)
+    parser.add_argument(
+        "--checkpoint-seconds",
+        type=float,
+        default=DEFAULTS.checkpoint_seconds,
+        help="also write a checkpoint after this much wall time, in seconds (default "
+        f"{DEFAULTS.checkpoint_seconds:g}); Ctrl-C writes one too and says from which step the same "
+        "command resumes",
+    )
 
 
 def _add_common(parser: argparse.ArgumentParser) -> None:

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..observables import rms
 from .md_benchmark_results import ENERGY_ROWS, label
 
 ANALYSIS_FILE = "md_benchmark_analysis.json"
@@ -42,20 +43,10 @@ def analyse_run(directory: Path) -> dict:
     rdf = oxygen_rdf(positions, select=WATER_O, nbins=RDF_BINS, r_max=RDF_RANGE[1])
     result["rdf_r"] = rdf.results.bins.tolist()
     result["rdf_g"] = rdf.results.rdf.tolist()
-    msd = Diffusion(positions, select=WATER_O).run()
+    msd = Diffusion(positions, select=WATER_O, error_groups=4).run()
     result["diffusion"] = float(msd.results.diffusion_coefficient)
-    # Error of D: the spread of D over 4 disjoint groups of molecules, / sqrt(4).
-    oxygens = positions.select_atoms(WATER_O)
-    groups = [oxygens[i::4] for i in range(4)]
-    d_groups = [
-        float(
-            Diffusion(positions, select="index " + " ".join(map(str, g.indices)))
-            .run()
-            .results.diffusion_coefficient
-        )
-        for g in groups
-    ]
-    result["diffusion_error"] = float(np.std(d_groups, ddof=1) / np.sqrt(len(groups)))
+    # error of D: the spread of D over 4 disjoint groups of molecules, / sqrt(4)
+    result["diffusion_error"] = msd.results.diffusion_coefficient_standard_error
     velocities_file = directory / "velocities.dcd"
     if velocities_file.is_file():
         velocities = open_universe(directory, velocities_file.name)
@@ -78,7 +69,7 @@ def compare_dynamics(run: dict, reference: dict) -> dict:
     window = (r >= RDF_COMPARE[0]) & (r <= RDF_COMPARE[1])
     g, g_ref = np.asarray(run["rdf_g"]), np.asarray(reference["rdf_g"])
     out = {
-        "rdf_rms_difference": float(np.sqrt(np.mean((g[window] - g_ref[window]) ** 2))),
+        "rdf_rms_difference": rms(g[window] - g_ref[window]),
         "rdf_first_peak": float(g[window].max()),
         "diffusion": run["diffusion"],
         "diffusion_error": run["diffusion_error"],

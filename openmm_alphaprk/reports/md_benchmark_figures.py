@@ -8,8 +8,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
-
+from ..observables import rms
 from .md_benchmark_analysis import analyse_run
 from .md_benchmark_results import (
     ENERGY_ROWS,
@@ -49,9 +48,9 @@ def figure_energy(rows, systems: list[str]) -> str:
             residual = energies[1:, 4] - energies[0, 4]
             window = 10  # samples of 20 fs
             n = residual.size // window * window
-            rms = np.sqrt(np.mean(residual[:n].reshape(-1, window) ** 2, axis=1))
+            block_rms = rms(residual[:n].reshape(-1, window), axis=1)
             times = energies[1 : n + 1, 1].reshape(-1, window).mean(axis=1)
-            ax.plot(times, rms, lw=0.9, label=label(integrator, step))
+            ax.plot(times, block_rms, lw=0.9, label=label(integrator, step))
         ax.set_yscale("log")
         ax.set_title(system)
         ax.set_ylabel("RMS(H − E_ref) per 0.2 ps (kJ/mol)")

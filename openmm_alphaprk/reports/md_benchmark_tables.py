@@ -48,7 +48,9 @@ def energy_table(rows, system: str, timing: dict[str, dict]) -> list[dict]:
         }
         if integrator.startswith("energy"):
             entry["controller"] = {
-                key.split(".", 1)[1]: number(row, key) for key in row if key.startswith("controller.")
+                key.split(".", 1)[1]: number(row, key)
+                for key in row
+                if key.startswith("controller.") and key != "controller.residuals_over"  # the one text field
             }
         out.append(entry)
     return out

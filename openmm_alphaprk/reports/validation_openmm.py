@@ -43,6 +43,7 @@ def _box_run(workdir: Path, key: str, name: str, substeps: int, steps: int) -> d
         energy_interval=10 * substeps,
         trajectory_interval=steps * substeps,
         checkpoint_interval=steps * substeps,
+        controller_interval=1,  # α* of every step
         progress=False,
     )
     entry = {

@@ -129,6 +129,6 @@ def long_run_entry(reporter: InvariantReporter, e_ref: float, timestep_ps: float
         "start_constraint_error": start[5],
         "max_constraint_error": float(c_pos.max()),
         "max_constraint_velocity_error": float(c_vel.max()),
-        "rms_energy_residual": float(np.sqrt(np.mean(residual**2))),
+        "rms_energy_residual": observables.rms(residual),
         "max_abs_energy_residual": float(np.max(np.abs(residual))),
     }

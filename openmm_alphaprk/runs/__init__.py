@@ -4,10 +4,13 @@
 - :mod:`.rundir`: the files of a run directory, its parameters, resume checks.
 - :mod:`.reporters`: :class:`AlphaControllerReporter` (α* controller CSV) and
   :class:`VelocityDCDReporter` (velocities as DCD), controller summaries.
+- :mod:`.checkpoints`: checkpoints by steps, by wall time and on Ctrl-C, and
+  :class:`RunInterrupted`, which says from which step a run resumes.
 - :mod:`.driver`: :func:`run_nve`, prepare → simulate → write.
 - :mod:`.summary`: :class:`RunSummary`, what ``summary.json`` holds.
 """
 
+from .checkpoints import RunInterrupted
 from .driver import RunFailedError, run_nve
 from .options import RunOptions
 from .reporters import (
@@ -25,6 +28,7 @@ __all__ = [
     "ControllerSummary",
     "RunDirectoryError",
     "RunFailedError",
+    "RunInterrupted",
     "RunOptions",
     "RunSummary",
     "VelocityDCDReporter",

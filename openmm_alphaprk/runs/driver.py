@@ -1,14 +1,17 @@
 """NVE runs of a prepared system with a chosen integrator, written as they go and resumable.
 
 :func:`run_nve` writes a run directory (see :mod:`openmm_alphaprk.runs.rundir`) with
-OpenMM's own reporters — ``StateDataReporter`` (energies CSV), ``DCDReporter``,
-``CheckpointReporter`` — plus :class:`~openmm_alphaprk.runs.AlphaControllerReporter`
+OpenMM's own reporters — ``StateDataReporter`` (energies CSV), ``DCDReporter`` — and
+checkpoints (:mod:`.checkpoints`), plus :class:`~openmm_alphaprk.runs.AlphaControllerReporter`
 for the energy mode, and a JSON summary at the end. Calling it again on the same
 directory with the same settings resumes from the last checkpoint (or reports the
 finished run); other settings are refused.
 
 A run is prepared (options, platform, system, directory), simulated (from its start
 state or its last checkpoint, with the reporters) and written (``summary.json``).
+Checkpoints are written every ``checkpoint_interval`` steps, after
+``checkpoint_seconds`` of wall time, and when the run is interrupted (Ctrl-C) between
+steps; the :class:`RunInterrupted` raised then says from which step the same call resumes.
 """
 
 from __future__ import annotations
@@ -28,26 +31,23 @@ from tqdm import tqdm
 from ..integrators.names import IntegratorSpec, check_compatible, make_integrator, parse_integrator
 from ..systems import PreparedSystem, prepare_system
 from . import rundir
+from .checkpoints import (
+    CheckpointReporter,
+    RunInterrupted,
+    Tracked,
+    TrackedControllerReporter,
+    TrackedDCDReporter,
+    TrackedStateDataReporter,
+    TrackedVelocityDCDReporter,
+    deferred_interrupt,
+    interrupted,
+)
 from .options import RunOptions
-from .reporters import AlphaControllerReporter, VelocityDCDReporter
-from .summary import RunSummary, summarize
+from .summary import RunSummary, read_summary, summarize
 
 
 class RunFailedError(RuntimeError):
     """Raised when a run stops on a NaN or a failed step; the output up to then is kept."""
-
-
-class _CheckpointReporter(app.CheckpointReporter):
-    """OpenMM's ``CheckpointReporter`` that remembers the step of the last checkpoint it wrote."""
-
-    def __init__(self, file: str, interval: int, last_step: int | None) -> None:
-        super().__init__(file, interval)
-        self.last_step = last_step
-
-    def report(self, simulation: app.Simulation, state: mm.State) -> None:
-        """Write the checkpoint and remember its step."""
-        super().report(simulation, state)
-        self.last_step = simulation.currentStep
 
 
 @dataclass
@@ -86,11 +86,11 @@ def run_nve(
         ``steps``), the run resumes from its last checkpoint, or is extended to ``steps``.
     options, **keywords
         A :class:`~openmm_alphaprk.runs.RunOptions` (steps, timestep, platform,
-        precision, constraint_tolerance, intervals, velocity_seed, cpu_threads,
-        cache_dir, progress), and/or its fields as keywords (they replace the
-        ``options``' own), e.g. ``steps=2000, timestep=0.001``.
+        precision, constraint_tolerance, intervals, checkpoint_seconds, velocity_seed,
+        cpu_threads, cache_dir, progress), and/or its fields as keywords (they replace
+        the ``options``' own), e.g. ``steps=2000, timestep=0.001``.
     extra_reporters
-        More OpenMM reporters, called after the run's own ones at each step.
+        More OpenMM reporters, added after the run's own.
 
     Returns
     -------
@@ -106,6 +106,10 @@ def run_nve(
         For bad numbers or units.
     RunFailedError
         If the run blows up (NaN energy, failed midpoint iteration); what was written stays.
+    RunInterrupted
+        On Ctrl-C (or another KeyboardInterrupt) while the run steps or writes its
+        summary, checkpointed where the files are complete (see :mod:`.checkpoints`);
+        the message says from which step the same call resumes.
     """
     spec = parse_integrator(integrator)
     run = prepare_run(system, spec, Path(output), RunOptions.build(options, **keywords))
@@ -113,12 +117,40 @@ def run_nve(
     start_step = _restore(simulation, run) if run.resume else _start(simulation, run)
     if start_step > run.options.steps:  # an interrupted run whose checkpoint is past the length asked for
         raise rundir.RunDirectoryError(rundir.longer_run_message(run.output, start_step, run.options.steps))
+    return _complete(simulation, run, start_step, extra_reporters)
+
+
+def _complete(
+    simulation: app.Simulation, run: _Run, start_step: int, extra_reporters: list | None
+) -> RunSummary:
+    """Step the run from ``start_step`` to its end and summarize it (or report it, if it is finished)."""
+    options = run.options
+    last = start_step if run.resume else None
+    checkpoints = CheckpointReporter(
+        run.output / rundir.CHECKPOINT_FILE, options.checkpoint_interval, options.checkpoint_seconds, last
+    )
+    try:
+        if start_step >= options.steps:
+            return _finished(simulation, run)
+        (run.output / rundir.SUMMARY_FILE).unlink(missing_ok=True)  # extended: not complete until it ends
+        wall = simulate(simulation, run, start_step, extra_reporters, checkpoints)
+        return write_summary(simulation, run, wall, start_step)
+    except KeyboardInterrupt as interrupt:
+        if isinstance(interrupt, RunInterrupted):
+            raise
+        raise interrupted(simulation, run.output, options.steps, checkpoints, False) from None
+
+
+def _finished(simulation: app.Simulation, run: _Run) -> RunSummary:
+    """Return the summary of a finished run: the stored one, or a new one if it is missing or out of date."""
     summary_file = run.output / rundir.SUMMARY_FILE
-    if start_step >= run.options.steps and summary_file.is_file():
-        return RunSummary(**json.loads(summary_file.read_text(encoding="utf-8")))
-    summary_file.unlink(missing_ok=True)  # an extended run is not complete until it ends
-    wall = simulate(simulation, run, start_step, extra_reporters)
-    return write_summary(simulation, run, wall, start_step)
+    stored = read_summary(summary_file)
+    if stored is not None:
+        return stored
+    # no summary (interrupted after the last step), or one lacking newer fields: summarize again
+    old = json.loads(summary_file.read_text(encoding="utf-8")) if summary_file.is_file() else {}
+    steps_before = simulation.currentStep - old.get("steps_this_call", 0)
+    return write_summary(simulation, run, old.get("wall_seconds", 0.0), steps_before)
 
 
 def prepare_run(
@@ -196,29 +228,33 @@ def _start(simulation: app.Simulation, run: _Run) -> int:
     return 0
 
 
-def simulate(simulation: app.Simulation, run: _Run, start_step: int, extra_reporters: list | None) -> float:
+def simulate(
+    simulation: app.Simulation,
+    run: _Run,
+    start_step: int,
+    extra_reporters: list | None,
+    checkpoints: CheckpointReporter,
+) -> float:
     """Attach the reporters, step to the end and checkpoint the last step; return the wall time (s)."""
-    restored = start_step if run.resume else None  # the step of the checkpoint resumed from
-    reporters = _reporters(run.output, run.spec, run.options.intervals, restored)
+    reporters = _reporters(run.output, run.spec, run.options.intervals, append=run.resume)
     if not run.resume:  # the start state's energy row: E_ref
         reporters[0].report(simulation, simulation.context.getState(getEnergy=True))
-    simulation.reporters.extend(reporters)
+    simulation.reporters.extend([*reporters, checkpoints])
     simulation.reporters.extend(extra_reporters or [])
-    wall = _advance(simulation, run, start_step)
-    if simulation.currentStep % run.options.checkpoint_interval != 0:
-        simulation.saveCheckpoint(str(run.output / rundir.CHECKPOINT_FILE))
+    wall = _advance(simulation, run, start_step, checkpoints, reporters)
+    if checkpoints.last_step != simulation.currentStep:
+        checkpoints.save(simulation)
     return wall
 
 
-def _reporters(output: Path, spec: IntegratorSpec, intervals: dict, restored: int | None) -> list:
-    """Energies first, checkpoint last: a checkpoint at step k follows the rows and frame of step k.
+def _reporters(output: Path, spec: IntegratorSpec, intervals: dict, append: bool) -> list[Tracked]:
+    """Return the run's reporters, energies first; the checkpoint reporter comes after them.
 
-    ``restored``: the step of the checkpoint the run resumes from (the files are appended
-    to), None for a new run.
+    A checkpoint at step k follows the rows and frames of step k. ``append``: the run
+    resumes, and the files are appended to.
     """
-    append = restored is not None
-    reporters: list = [
-        app.StateDataReporter(
+    reporters: list[Tracked] = [
+        TrackedStateDataReporter(
             str(output / rundir.ENERGIES_FILE),
             intervals["energy_interval"],
             step=True,
@@ -231,10 +267,12 @@ def _reporters(output: Path, spec: IntegratorSpec, intervals: dict, restored: in
         )
     ]
     if spec.kind == "energy":
-        reporters.append(AlphaControllerReporter(str(output / rundir.CONTROLLER_FILE), 1, append=append))
+        controller = str(output / rundir.CONTROLLER_FILE)
+        interval = intervals["controller_interval"]
+        reporters.append(TrackedControllerReporter(controller, interval, append=append))
     trajectory = output / rundir.TRAJECTORY_FILE
     reporters.append(
-        app.DCDReporter(
+        TrackedDCDReporter(
             str(trajectory),
             intervals["trajectory_interval"],
             append=append and rundir.has_dcd_header(trajectory),  # no frame yet: no header to append to
@@ -244,48 +282,67 @@ def _reporters(output: Path, spec: IntegratorSpec, intervals: dict, restored: in
     if "velocity_interval" in intervals:
         velocities = output / rundir.VELOCITIES_FILE
         reporters.append(
-            VelocityDCDReporter(
+            TrackedVelocityDCDReporter(
                 str(velocities),
                 intervals["velocity_interval"],
                 append=append and rundir.has_dcd_header(velocities),
             )
         )
-    reporters.append(
-        _CheckpointReporter(str(output / rundir.CHECKPOINT_FILE), intervals["checkpoint_interval"], restored)
-    )
     return reporters
 
 
-def _advance(simulation: app.Simulation, run: _Run, start_step: int) -> float:
-    """Step to ``steps`` in chunks of ``energy_interval`` (progress bar); return the wall time (s)."""
-    steps, chunk, output = run.options.steps, run.options.energy_interval, run.output
+def _advance(
+    simulation: app.Simulation,
+    run: _Run,
+    start_step: int,
+    checkpoints: CheckpointReporter,
+    reporters: list[Tracked],
+) -> float:
+    """Step to ``steps`` in chunks of ``energy_interval`` (progress bar); return the wall time (s).
+
+    After each chunk: a checkpoint if ``checkpoint_seconds`` have passed, or, after a
+    Ctrl-C during the chunk, a checkpoint and :class:`RunInterrupted`.
+    """
+    steps, chunk = run.options.steps, run.options.energy_interval
     started = time.perf_counter()
-    with tqdm(
-        total=steps,
-        initial=start_step,
-        desc=f"NVE {output.name}",
-        unit="step",
-        disable=not run.options.progress,
-        file=sys.stderr,
-        mininterval=1.0,
-    ) as bar:
+    with _progress(run, start_step) as bar, deferred_interrupt() as ctrl_c_received:
         while simulation.currentStep < steps:
             n = min(chunk - simulation.currentStep % chunk, steps - simulation.currentStep)
             try:
                 simulation.step(n)
+            except KeyboardInterrupt:  # raised inside a step: its output may be incomplete
+                step = simulation.currentStep
+                complete = all(reporter.complete_at(step) for reporter in reporters)
+                raise interrupted(simulation, run.output, steps, checkpoints, complete) from None
             except (ValueError, ArithmeticError, RuntimeError, mm.OpenMMException) as error:
-                raise _failure(simulation, run, error) from error
+                raise _failure(simulation, run, checkpoints, error) from error
             bar.update(n)
+            if ctrl_c_received():
+                raise interrupted(simulation, run.output, steps, checkpoints, True)
+            checkpoints.save_if_due(simulation)
     return time.perf_counter() - started
 
 
-def _failure(simulation: app.Simulation, run: _Run, error: Exception) -> RunFailedError:
+def _progress(run: _Run, start_step: int) -> tqdm:
+    """Return the run's progress bar (on stderr; off without ``progress``)."""
+    return tqdm(
+        total=run.options.steps,
+        initial=start_step,
+        desc=f"NVE {run.output.name}",
+        unit="step",
+        disable=not run.options.progress,
+        file=sys.stderr,
+        mininterval=1.0,
+    )
+
+
+def _failure(
+    simulation: app.Simulation, run: _Run, checkpoints: CheckpointReporter, error: Exception
+) -> RunFailedError:
     """Return the error of a run that stopped: its step, its last finite energy and its checkpoint, if any."""
     output, name = run.output, type(simulation.integrator).__name__
-    checkpoint = next((r for r in simulation.reporters if isinstance(r, _CheckpointReporter)), None)
-    path = output / rundir.CHECKPOINT_FILE
-    if checkpoint is not None and checkpoint.last_step is not None and path.is_file():
-        kept = f"the last checkpoint, {path}, is of step {checkpoint.last_step}"
+    if checkpoints.last_step is not None and checkpoints.path.is_file():
+        kept = f"the last checkpoint, {checkpoints.path}, is of step {checkpoints.last_step}"
     else:
         kept = "no checkpoint was written"
     last_row = rundir.last_energy_step(output / rundir.ENERGIES_FILE)
@@ -307,5 +364,5 @@ def write_summary(simulation: app.Simulation, run: _Run, wall_seconds: float, st
         wall_seconds,
         simulation.currentStep - start_step,
     )
-    (run.output / rundir.SUMMARY_FILE).write_text(json.dumps(summary.as_dict(), indent=2) + "\n")
+    rundir.replace_text(run.output / rundir.SUMMARY_FILE, json.dumps(summary.as_dict(), indent=2) + "\n")
     return summary

@@ -19,9 +19,17 @@ from ..observables import positive_int
 PRECISIONS = ("single", "mixed", "double")
 
 #: Options counted in steps (a sweep gives them as times, ``<name>_fs``).
-INTERVALS = ("energy_interval", "trajectory_interval", "checkpoint_interval", "velocity_interval")
+INTERVALS = (
+    "energy_interval",
+    "trajectory_interval",
+    "checkpoint_interval",
+    "velocity_interval",
+    "controller_interval",
+)
+#: Intervals that may be None: ``velocity_interval`` (no file), ``controller_interval`` (the energy interval).
+OPTIONAL_INTERVALS = ("velocity_interval", "controller_interval")
 #: Options a sweep's configuration passes through under their own names.
-PLATFORM_OPTIONS = ("platform", "precision", "cpu_threads", "constraint_tolerance")
+NAMED_OPTIONS = ("platform", "precision", "cpu_threads", "constraint_tolerance", "checkpoint_seconds")
 
 
 @dataclass(frozen=True)
@@ -49,8 +57,17 @@ class RunOptions:
         Relative tolerance of SHAKE/SETTLE/CCMA and the velocity constraints.
     energy_interval, trajectory_interval, checkpoint_interval
         Steps between energy rows, DCD frames and checkpoints. Energies cost one extra
-        force evaluation each on most platforms; the energy mode's controller CSV is
-        written every step (free).
+        force evaluation each on most platforms.
+    controller_interval
+        Steps between rows of the energy mode's ``controller.csv``; None (default): the
+        energy interval, so that the rows fall on the steps of the energy rows and do
+        not make ``Simulation`` step one step at a time. Statistics over every step come
+        from the integrator's totals, whatever the interval.
+    checkpoint_seconds
+        Wall time (a Quantity, or a number in s) after which a checkpoint is also
+        written between the step-count ones (checked at the end of every energy
+        interval; default 60 s): an interruption loses at most about this much work.
+        Not part of the run's identity.
     velocity_interval
         Steps between frames of ``velocities.dcd`` (velocities in Å/ps stored as DCD
         coordinates, see :class:`~openmm_alphaprk.runs.VelocityDCDReporter`); None
@@ -82,6 +99,8 @@ class RunOptions:
     trajectory_interval: int = 100
     checkpoint_interval: int = 500
     velocity_interval: int | None = None
+    controller_interval: int | None = None
+    checkpoint_seconds: float = 60.0
     velocity_seed: int | None = None
     cpu_threads: int | None = None
     cache_dir: str | os.PathLike | None = None
@@ -92,8 +111,10 @@ class RunOptions:
         self._set("steps", positive_int(self.steps, "steps"))
         for name in INTERVALS:
             value = getattr(self, name)
-            if value is not None or name != "velocity_interval":
+            if value is not None or name not in OPTIONAL_INTERVALS:
                 self._set(name, positive_int(value, name))
+        seconds = to_float(self.checkpoint_seconds, unit.seconds, "checkpoint_seconds", positive=True)
+        self._set("checkpoint_seconds", seconds)
         seed = self.velocity_seed
         if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int)):
             raise ValueError(f"velocity_seed must be an integer or None, got {seed!r}.")
@@ -117,8 +138,12 @@ class RunOptions:
 
     @property
     def intervals(self) -> dict[str, int]:
-        """The intervals that are set, by name (``velocity_interval`` only when given)."""
+        """The intervals in steps, by name (``velocity_interval`` only when given).
+
+        ``controller_interval`` is always there: the energy interval when not given.
+        """
         values = {name: getattr(self, name) for name in INTERVALS}
+        values["controller_interval"] = self.controller_interval or self.energy_interval
         return {name: value for name, value in values.items() if value is not None}
 
     def openmm_platform(self) -> tuple[mm.Platform, dict[str, str]]:

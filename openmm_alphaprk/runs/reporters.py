@@ -27,7 +27,7 @@ from ..integrators.controller import (
     STEP_FORCE_EVALUATIONS,
     TRIALS,
 )
-from ..observables import alpha_percentiles
+from ..observables import alpha_percentiles, rms
 
 #: Columns written by :class:`AlphaControllerReporter`, with their units.
 COLUMNS = (
@@ -45,13 +45,22 @@ COLUMNS = (
 
 
 class AlphaControllerReporter:
-    """Write the α* controller's per-step diagnostics to a CSV file as the run goes.
+    """Write the α* controller's diagnostics of sampled steps to a CSV file as the run goes.
 
     Follows the OpenMM reporter protocol (``describeNextReport``/``report``), so it
-    is added to ``Simulation.reporters`` like ``StateDataReporter``. The file is
-    opened on the first report and flushed after every row, so an interrupted run
-    leaves a readable file. With ``reportInterval=1`` (the default) every step is
-    recorded; with a larger interval each row describes the step just taken.
+    is added to ``Simulation.reporters`` like ``StateDataReporter``. Every
+    ``reportInterval`` steps it writes one row describing the step just taken (α*,
+    H − E_ref, trials, force evaluations, fallback, …), read from the integrator's
+    global variables; it asks OpenMM for no State data. Set-up (the integrator check,
+    the file and its header) happens at the first report. Each row is flushed as it is
+    written, so an interrupted run leaves a readable file, and no row is kept in memory.
+
+    The rows are samples. Statistics over every step (fractions fallen back and at a
+    bound, force evaluations per step, and, where the integrator accumulates them, RMS
+    and max |H − E_ref|) come from ``integrator.controller_totals()``; :meth:`summary`
+    combines both. ``reportInterval=1`` records every step but makes ``Simulation``
+    take one step at a time with a ``getState`` after each (a host synchronization per
+    step on a GPU); the driver uses the energy interval.
 
     Parameters
     ----------
@@ -65,6 +74,9 @@ class AlphaControllerReporter:
 
     Raises
     ------
+    TypeError
+        From ``report``, if the simulation's integrator is not an
+        :class:`~openmm_alphaprk.AlphaRattleIntegrator` in the energy mode.
     ValueError
         From ``report``, if the residual is not finite (fail fast on NaN).
     """
@@ -80,22 +92,38 @@ class AlphaControllerReporter:
         self._out: io.TextIOBase | None = None
         self._writer = None
         self._owns_file = False
-        self.rows: list[tuple[float, ...]] = []
+        self._integrator: AlphaRattleIntegrator | None = None
+        self._variables: tuple[int, ...] = ()
 
     def describeNextReport(self, simulation: app.Simulation) -> dict:
-        """Return the steps until the next report; this reporter needs no state data."""
+        """Return the steps until the next row; no State data is asked for (the row is read from globals)."""
         steps = self._interval - simulation.currentStep % self._interval
         return {"steps": steps, "periodic": None, "include": []}
 
     def report(self, simulation: app.Simulation, state) -> None:
-        """Append one row for the step just taken."""
-        row = self._constructReportValues(simulation, state)
+        """Write one row for the step just taken (set up the file at the first report)."""
         if self._out is None:
-            self._open()
-        self.rows.append(row)
+            self._initialize(simulation)
+        row = self._constructReportValues(simulation, state)
         self._writer.writerow(row)
         self._out.flush()
         self._checkForErrors(row)
+
+    def _initialize(self, simulation: app.Simulation) -> None:
+        """Check the integrator, find its variables, open the file and write the header."""
+        try:
+            integrator = restore_integrator(simulation.integrator)
+        except TypeError:  # not one of this package's integrators
+            integrator = simulation.integrator
+        if not isinstance(integrator, AlphaRattleIntegrator) or not integrator.energy_mode:
+            raise TypeError(
+                "AlphaControllerReporter needs an AlphaRattleIntegrator in the energy mode "
+                "(alpha='energy'); use openmm.app.StateDataReporter for other integrators."
+            )
+        names = [integrator.getGlobalVariableName(i) for i in range(integrator.getNumGlobalVariables())]
+        self._integrator = integrator
+        self._variables = tuple(names.index(name) for name in _VARIABLES)
+        self._open()
 
     def _constructHeaders(self) -> list[str]:
         """Return the CSV header: :data:`COLUMNS`."""
@@ -103,26 +131,23 @@ class AlphaControllerReporter:
 
     def _constructReportValues(self, simulation: app.Simulation, state) -> tuple:
         """Return the row of the step just taken, read from the integrator's global variables."""
-        integrator = restore_integrator(simulation.integrator)
-        if not isinstance(integrator, AlphaRattleIntegrator) or not integrator.energy_mode:
-            raise TypeError(
-                "AlphaControllerReporter needs an AlphaRattleIntegrator in the energy mode "
-                "(alpha='energy'); use openmm.app.StateDataReporter for other integrators."
-            )
-        get = integrator.getGlobalVariableByName
+        get = self._integrator.getGlobalVariable
+        alpha, residual, reference, trials, evaluations, fell_back, at_bound, change = (
+            get(i) for i in self._variables
+        )
+        step = simulation.currentStep
+        time = state.getTime()._value if state is not None else step * self._integrator.getStepSize()._value
         return (
-            simulation.currentStep,
-            state.getTime()._value
-            if state is not None
-            else simulation.currentStep * integrator.getStepSize()._value,
-            get(ALPHA),
-            get(RESIDUAL),
-            get(REFERENCE_ENERGY),
-            int(get(TRIALS)),
-            int(get(STEP_FORCE_EVALUATIONS)),
-            int(get(FELL_BACK)),
-            int(get(ALPHA_AT_BOUND)),
-            get(MIDPOINT_CHANGE),
+            step,
+            time,
+            alpha,
+            residual,
+            reference,
+            int(trials),
+            int(evaluations),
+            int(fell_back),
+            int(at_bound),
+            change,
         )
 
     @staticmethod
@@ -150,22 +175,81 @@ class AlphaControllerReporter:
             self._writer.writerow(self._constructHeaders())
 
     def summary(self, energy_tolerance: float | None = None) -> ControllerSummary:
-        """Summary statistics of the rows recorded by this reporter object."""
-        return summarize_controller(np.array(self.rows, dtype=float), energy_tolerance)
+        """Summarize the file written and the integrator's totals (see :func:`summarize_controller`).
+
+        Raises
+        ------
+        ValueError
+            Before the first report, or when the reporter writes to an open file
+            object instead of a path (the rows are not kept; read them back yourself).
+        """
+        if self._integrator is None:
+            raise ValueError("no report yet: run at least one step with the reporter attached.")
+        if not isinstance(self._file_argument, (str, os.PathLike)):
+            raise ValueError(
+                "this reporter writes to a file object and keeps no rows; summarize with "
+                "summarize_controller(read_controller_csv(path), totals=integrator.controller_totals())."
+            )
+        rows = read_controller_csv(self._file_argument)
+        return summarize_controller(rows, energy_tolerance, self._integrator.controller_totals())
 
     def __del__(self) -> None:
         if self._owns_file and self._out is not None:
             self._out.close()
 
 
+#: The integrator's global variables of a row, in the order of :data:`COLUMNS` after step and time.
+_VARIABLES = (
+    ALPHA,
+    RESIDUAL,
+    REFERENCE_ENERGY,
+    TRIALS,
+    STEP_FORCE_EVALUATIONS,
+    FELL_BACK,
+    ALPHA_AT_BOUND,
+    MIDPOINT_CHANGE,
+)
+
+#: ``residuals_over`` of a :class:`ControllerSummary` whose RMS and max cover every step.
+EVERY_STEP = "every step"
+#: ``residuals_over`` of a :class:`ControllerSummary` whose RMS and max cover the CSV rows only.
+ROWS = "controller.csv rows"
+
+
 @dataclass(frozen=True)
 class ControllerSummary:
-    """Statistics of the α* controller over a run (kJ/mol for energies)."""
+    """Statistics of the α* controller over a run (energies in kJ/mol).
+
+    Attributes
+    ----------
+    steps
+        Steps the statistics cover: the integrator's steps when its totals are given,
+        else the number of rows.
+    rows
+        Rows of ``controller.csv`` (sampled steps) summarized.
+    alpha_percentiles
+        α* percentiles over the rows.
+    rms_residual, max_abs_residual
+        RMS and max |H − E_ref| (E_ref: the integrator's reference energy, the start
+        state's total energy) over every step when the integrator accumulates them,
+        else over the rows; ``residuals_over`` says which (:data:`EVERY_STEP` or :data:`ROWS`).
+    fraction_within_tolerance
+        Steps that ended with |H − E_ref| ≤ the energy tolerance.
+    fraction_fallen_back
+        Steps that ended with |H − E_ref| above the energy tolerance: α* stopped at a
+        bound, or after ``max_trials`` trials, without reaching it; the step is kept.
+    fraction_at_bound
+        Steps whose α* sat at a bound of ``alpha_bounds``.
+    force_evaluations_per_step
+        Mean force evaluations per step.
+    """
 
     steps: int
+    rows: int
     alpha_percentiles: dict[str, float]
     rms_residual: float
     max_abs_residual: float
+    residuals_over: str
     fraction_within_tolerance: float
     fraction_fallen_back: float
     fraction_at_bound: float
@@ -186,32 +270,49 @@ def read_controller_csv(path: str | os.PathLike) -> np.ndarray:
     return data
 
 
-def summarize_controller(rows: np.ndarray, energy_tolerance: float | None = None) -> ControllerSummary:
-    """α percentiles, residual statistics and fractions from controller rows.
+def summarize_controller(
+    rows: np.ndarray, energy_tolerance: float | None = None, totals: dict | None = None
+) -> ControllerSummary:
+    """α* percentiles, residual statistics and fractions from controller rows and the integrator's totals.
 
     Parameters
     ----------
     rows
-        Array with the columns of :data:`COLUMNS` (from the reporter, or
-        :func:`read_controller_csv`).
+        Array with the columns of :data:`COLUMNS` (from :func:`read_controller_csv`).
     energy_tolerance
-        If given (kJ/mol), "within tolerance" is |H − E_ref| ≤ this; otherwise the
-        integrator's own verdict per step (``fell back`` column) is used.
+        If given (kJ/mol), "within tolerance" is |H − E_ref| ≤ this over the rows;
+        otherwise the integrator's verdict (its totals, or the rows' ``fell back`` column).
+    totals
+        ``integrator.controller_totals()``: counts over every step. The fractions and
+        force evaluations per step are taken from it, and RMS and max |H − E_ref| when
+        it has ``rms_residual`` and ``max_abs_residual``; without it, everything comes
+        from the rows.
     """
     rows = np.asarray(rows, dtype=float)
     if rows.ndim != 2 or rows.shape[0] == 0:
         raise ValueError("No controller rows to summarize: run at least one step with the reporter attached.")
     alpha, residual = rows[:, 2], rows[:, 3]
-    within = np.abs(residual) <= energy_tolerance if energy_tolerance is not None else rows[:, 7] == 0
+    if energy_tolerance is not None:
+        within = float(np.mean(np.abs(residual) <= energy_tolerance))
+    elif totals:
+        within = float(totals["fraction_within_tolerance"])
+    else:
+        within = float(np.mean(rows[:, 7] == 0))
+    every_step = bool(totals) and "rms_residual" in totals and "max_abs_residual" in totals
+    steps = int(totals["steps"]) if totals else int(rows.shape[0])
     return ControllerSummary(
-        steps=int(rows.shape[0]),
+        steps=steps,
+        rows=int(rows.shape[0]),
         alpha_percentiles=alpha_percentiles(alpha),
-        rms_residual=float(np.sqrt(np.mean(residual**2))),
-        max_abs_residual=float(np.max(np.abs(residual))),
-        fraction_within_tolerance=float(np.mean(within)),
-        fraction_fallen_back=float(np.mean(rows[:, 7])),
-        fraction_at_bound=float(np.mean(rows[:, 8])),
-        force_evaluations_per_step=float(np.mean(rows[:, 6])),
+        rms_residual=float(totals["rms_residual"]) if every_step else rms(residual),
+        max_abs_residual=float(totals["max_abs_residual"]) if every_step else float(np.max(np.abs(residual))),
+        residuals_over=EVERY_STEP if every_step else ROWS,
+        fraction_within_tolerance=within,
+        fraction_fallen_back=float(totals["fraction_fallen_back"]) if totals else float(np.mean(rows[:, 7])),
+        fraction_at_bound=totals["steps_at_bound"] / max(steps, 1) if totals else float(np.mean(rows[:, 8])),
+        force_evaluations_per_step=float(totals["force_evaluations_per_step"])
+        if totals
+        else float(np.mean(rows[:, 6])),
     )
 
 

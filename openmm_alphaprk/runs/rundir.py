@@ -5,7 +5,7 @@ A run directory holds::
     run.json         parameters of the run (what makes it "the same run")
     system.xml       the System (XmlSerializer), topology.pdb the start structure
     energies.csv     StateDataReporter rows: step, time, potential, kinetic, total energy, temperature
-    controller.csv   energy mode only: AlphaControllerReporter rows, every step
+    controller.csv   energy mode only: AlphaControllerReporter rows every controller_interval steps
     trajectory.dcd   DCDReporter frames (unwrapped coordinates) every trajectory_interval steps
     velocities.dcd   optional: velocities (Å/ps, stored as DCD coordinates) every velocity_interval steps
     start_state.xml  with velocity_seed: the start State (XmlSerializer) with the new velocities
@@ -58,6 +58,8 @@ OUTPUT_FILES = (
 
 #: Parameters that may differ between invocations on the same directory.
 _MAY_DIFFER = ("steps",)
+#: Parameters added to ``run.json`` later, with the value that directories written before them used.
+_IMPLIED = {"controller_interval": 1}
 
 
 class RunDirectoryError(ValueError):
@@ -67,10 +69,15 @@ class RunDirectoryError(ValueError):
 def run_parameters(prepared: PreparedSystem, spec: IntegratorSpec, options: RunOptions) -> dict[str, Any]:
     """Return the parameters stored in ``run.json``; a directory with other values holds a different run.
 
-    ``velocity_interval`` and ``velocity_seed`` are stored only when set, so run
-    directories written before they existed stay valid.
+    ``velocity_interval`` and ``velocity_seed`` are stored only when set, and
+    ``controller_interval`` only for the energy mode (the only one writing
+    ``controller.csv``), so run directories written before they existed stay valid.
     """
-    optional = {"velocity_interval": options.velocity_interval, "velocity_seed": options.velocity_seed}
+    optional = {
+        "velocity_interval": options.velocity_interval,
+        "velocity_seed": options.velocity_seed,
+        "controller_interval": options.intervals["controller_interval"] if spec.kind == "energy" else None,
+    }
     return {
         "format": RUN_FORMAT,
         "system": prepared.name,
@@ -108,6 +115,7 @@ def check_run_directory(path: Path, parameters: dict[str, Any]) -> dict[str, Any
             "directory. Choose a new or empty directory."
         )
     stored = json.loads(stored_file.read_text(encoding="utf-8"))
+    stored = {key: value for key, value in _IMPLIED.items() if key in parameters} | stored
     keys = list(parameters) + [key for key in stored if key not in parameters]
     differences = [
         f"{key}: stored {stored.get(key)!r}, requested {parameters.get(key)!r}"
@@ -146,7 +154,7 @@ def _same(a: Any, b: Any) -> bool:
 
 
 def write_parameters(path: Path, parameters: dict[str, Any]) -> None:
-    (path / PARAMETERS_FILE).write_text(json.dumps(parameters, indent=2) + "\n", encoding="utf-8")
+    replace_text(path / PARAMETERS_FILE, json.dumps(parameters, indent=2) + "\n")
 
 
 def read_energies(path: str | os.PathLike) -> np.ndarray:
@@ -201,7 +209,14 @@ def truncate_csv(path: Path, last_step: int) -> None:
         if step > last_step:
             break
         kept.append(line)
-    path.write_text("".join(kept), encoding="utf-8")
+    replace_text(path, "".join(kept))
+
+
+def replace_text(path: Path, text: str) -> None:
+    """Write ``text`` to a temporary file, then rename it over ``path``: never a half-written file."""
+    temporary = path.with_name(path.name + ".part")
+    temporary.write_text(text, encoding="utf-8")
+    os.replace(temporary, path)
 
 
 def truncate_dcd(path: Path, n_frames: int) -> int:

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+import json
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
@@ -10,12 +11,13 @@ import openmm as mm
 import openmm.app as app
 import openmm.unit as unit
 
-from ..analysis.energy import EnergyDrift, energy_drift
-from ..integrators import StepProgram
+from ..integrators import AlphaRattleIntegrator, StepProgram
 from ..integrators.names import IntegratorSpec
 from ..observables import (
     VERLET_IS_LEAPFROG,
+    EnergyDrift,
     degrees_of_freedom,
+    energy_drift,
     masses,
     momenta,
     system_constraint_errors,
@@ -27,7 +29,15 @@ from .reporters import read_controller_csv, summarize_controller
 
 @dataclass
 class RunSummary:
-    """What ``summary.json`` holds (energies kJ/mol, drift kJ/mol/ns per degree of freedom)."""
+    """What ``summary.json`` holds (energies kJ/mol, drift kJ/mol/ns per degree of freedom).
+
+    ``e_ref`` is the total energy of the start state (the first row of
+    ``energies.csv``); ``drift_per_dof`` ± ``drift_per_dof_standard_error``,
+    ``drift_resolved``, ``rms_residual`` and ``max_abs_residual`` are
+    :func:`~openmm_alphaprk.observables.energy_drift` of the ``energy_samples`` rows
+    after it. ``controller`` (energy mode) is a
+    :class:`~openmm_alphaprk.runs.ControllerSummary` over every step of the run.
+    """
 
     system: str
     integrator: str
@@ -39,6 +49,8 @@ class RunSummary:
     platform: str
     e_ref: float
     drift_per_dof: float
+    drift_per_dof_standard_error: float
+    drift_resolved: bool
     rms_residual: float
     max_abs_residual: float
     energy_samples: int
@@ -92,6 +104,8 @@ def summarize(
         platform=simulation.context.getPlatform().getName(),
         e_ref=drift.e_ref,
         drift_per_dof=drift.drift_per_dof,
+        drift_per_dof_standard_error=drift.drift_per_dof_standard_error,
+        drift_resolved=drift.drift_resolved,
         rms_residual=drift.rms_residual,
         max_abs_residual=drift.max_abs_residual,
         energy_samples=drift.samples - 1,
@@ -102,7 +116,7 @@ def summarize(
         steps_this_call=steps_this_call,
         force_evaluations_per_step=float(evaluations),
         velocity_verlet=spec.velocity_verlet,
-        controller=_controller(output, spec),
+        controller=_controller(output, integrator),
         momentum_change=momentum_change,
         notes=_notes(spec),
     )
@@ -114,14 +128,40 @@ def _energy_fit(output: Path, dof: int) -> EnergyDrift:
     if len(energies) >= 2:
         return energy_drift(energies[:, 1], energies[:, 4], dof)
     # fewer steps than energy_interval: only the start row
-    return EnergyDrift(energies[0, 4], 1, 0.0, *(float("nan"),) * 4)
+    nan = float("nan")
+    return EnergyDrift(energies[0, 4], 1, 0.0, nan, nan, nan, nan, False, nan, nan, nan)
 
 
-def _controller(output: Path, spec: IntegratorSpec) -> dict:
-    """Return the energy mode's controller statistics from ``controller.csv``; empty for other integrators."""
-    if spec.kind != "energy":
+def _controller(output: Path, integrator: mm.Integrator) -> dict:
+    """Return the energy mode's controller statistics; empty for other integrators.
+
+    Counts and fractions (and RMS and max |H − E_ref| where the integrator accumulates
+    them) are the integrator's totals over every step; α* percentiles come from the
+    rows of ``controller.csv``.
+    """
+    if not isinstance(integrator, AlphaRattleIntegrator) or not integrator.energy_mode:
         return {}
-    return summarize_controller(read_controller_csv(output / rundir.CONTROLLER_FILE)).as_dict()
+    path = output / rundir.CONTROLLER_FILE
+    rows = read_controller_csv(path) if path.is_file() and path.stat().st_size else np.empty((0, 0))
+    if rows.size == 0:  # a run shorter than the controller interval: no row yet
+        return {}
+    totals = integrator.controller_totals()
+    return summarize_controller(rows, totals=totals).as_dict()
+
+
+def read_summary(path: Path) -> RunSummary | None:
+    """Return the summary stored in ``path``, None if it is missing or lacks fields of :class:`RunSummary`.
+
+    A summary written by an earlier version of the package lacks newer fields (the
+    drift's standard error); the driver then summarizes the finished run again.
+    """
+    if not path.is_file():
+        return None
+    stored = json.loads(path.read_text(encoding="utf-8"))
+    names = {f.name for f in fields(RunSummary)}
+    if not names <= stored.keys() or (stored["controller"] and "residuals_over" not in stored["controller"]):
+        return None
+    return RunSummary(**{key: value for key, value in stored.items() if key in names})
 
 
 def _notes(spec: IntegratorSpec) -> list[str]:

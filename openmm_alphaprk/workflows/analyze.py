@@ -39,11 +39,12 @@ def analyze_run(
 ) -> dict:
     """Analyse a run directory written by :func:`~openmm_alphaprk.runs.run_nve`.
 
-    Computes the energy drift fit (``energies.csv``), the constraint deviation per
-    frame (trajectory against the System's constraint lengths), the O–O RDF
-    (MDAnalysis ``InterRDF``; periodic systems only) and the MSD with a diffusion
-    coefficient (MDAnalysis ``EinsteinMSD``). Writes ``analysis.json`` and, with
-    ``plot``, ``energy.png``, ``constraint_deviation.png``, ``rdf_OO.png``, ``msd.png``.
+    Computes :func:`~openmm_alphaprk.observables.energy_drift` of ``energies.csv`` (E_ref,
+    drift ± standard error, RMS and max |H − E_ref|), the constraint deviation per frame,
+    the O–O RDF (MDAnalysis ``InterRDF``; periodic systems only) and the MSD with D, its
+    standard error and the frames it is from (:class:`~openmm_alphaprk.analysis.Diffusion`).
+    Writes ``analysis.json`` and, with ``plot``, ``energy.png``,
+    ``constraint_deviation.png``, ``rdf_OO.png``, ``msd.png``.
 
     Parameters
     ----------
@@ -194,13 +195,20 @@ def _msd(result: dict, run: Path, universe, select: str, plot: bool, progress: b
         result["notes"].append("MSD skipped: fewer than three frames or no selected atoms")
         return {}
     msd = Diffusion(universe, select).run(verbose=progress, progressbar_kwargs={"desc": "MSD (EinsteinMSD)"})
+    d_error = msd.results.diffusion_coefficient_standard_error
     result["msd"] = {
         "selection": select,
         "lag_ps": msd.results.delta_t_values.tolist(),
         "msd_angstrom2": msd.results.timeseries.tolist(),
         "fit_window_ps": list(msd.results.fit_window),
+        "frames": msd.results.frames,
         "diffusion_coefficient_1e-5_cm2_per_s": msd.results.diffusion_coefficient,
-        "note": "short runs give a noisy D that is not converged",
+        "diffusion_coefficient_standard_error_1e-5_cm2_per_s": d_error,
+        "error_groups": msd.results.error_groups,
+        "note": (
+            f"standard error: the spread of D over {msd.results.error_groups} disjoint groups of the "
+            "selected atoms; a short run's D is not converged, whatever its standard error"
+        ),
     }
     if not plot:
         return {}
@@ -212,6 +220,8 @@ def _msd(result: dict, run: Path, universe, select: str, plot: bool, progress: b
         run / "msd.png",
         xlabel="lag time (ps)",
         ylabel="MSD (Å²)",
-        title=f"D = {msd.results.diffusion_coefficient:.3g} × 1e-5 cm²/s ({select})",
+        title=f"D = {msd.results.diffusion_coefficient:.3g} ± "
+        f"{msd.results.diffusion_coefficient_standard_error:.2g} × 1e-5 cm²/s "
+        f"({select}, {msd.results.frames} frames)",
     )
     return {"msd": figure}

@@ -4,13 +4,15 @@ from __future__ import annotations
 
 import json
 import os
+import textwrap
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 from ..integrators.names import IntegratorSpec, check_compatible, parse_integrator
-from ..observables import VERLET_IS_LEAPFROG
+from ..observables import VERLET_IS_LEAPFROG, drift_text
 from ..runs import RunOptions, RunSummary, run_nve, rundir
+from ..runs.reporters import EVERY_STEP
 from ..systems import PreparedSystem, load_definition, prepare_system
 
 DEFAULT_SYSTEM = "tip3p-3nm"
@@ -45,8 +47,9 @@ def compare(
 
     Each integrator gets its own run directory ``output/<integrator>`` (see
     :func:`~openmm_alphaprk.runs.run_nve`; an interrupted comparison resumes where it
-    stopped). Writes ``comparison.json``, the table, and ``energy_residuals.png``
-    (H − E_ref against time for all integrators).
+    stopped). Writes ``comparison.json``, the table (``table.txt``, with notes that define
+    E_ref, the drift ± standard error and "fell back"), and ``energy_residuals.png``
+    (H − E_ref against time for all integrators, with the table's RMS and drift).
 
     Parameters
     ----------
@@ -56,7 +59,8 @@ def compare(
     integrators
         Integrator names (``rattle``, ``verlet``, ``energy``, ``alpha=<number>``).
     output
-        Folder of the comparison.
+        Folder of the comparison; a relative path is taken from the current directory
+        (the default, ``alphaprk-compare``, is created there).
     options, **keywords
         The options of every run, a :class:`~openmm_alphaprk.runs.RunOptions` and/or
         its fields as keywords (``steps`` per integrator, ``timestep``, ``platform``,
@@ -202,33 +206,50 @@ def run_directory_name(spec: IntegratorSpec) -> str:
     return rundir.folder_name(spec.name)
 
 
+#: What the table's energy columns are, printed under it.
+ENERGY_NOTE = (
+    "E_ref = total energy of the start state (step 0). RMS and max |H - E_ref|: over the energy rows "
+    "after step 0. drift/DOF: slope of a least-squares line through those rows per degree of freedom, "
+    "± its standard error (widened for correlated rows); 'not resolved' when |drift| < 2 standard "
+    "errors: the run is too short to tell it from zero."
+)
+#: What "fell back" and "at a bound" mean, printed under the energy mode's line.
+CONTROLLER_NOTE = (
+    "fell back = the step ended with |H - E_ref| above the energy tolerance (alpha* stopped at a "
+    "bound, or after max_trials, without reaching it; the step is kept); at a bound = alpha* sat at "
+    "an end of alpha_bounds."
+)
+_WRAP = 110
+
+
 def format_table(summaries: Sequence[RunSummary], header: str = "", verlet_note: bool = True) -> str:
-    """Format the comparison table as plain text (units in the column titles)."""
+    """Format the comparison table as plain text (units in the column titles), with its notes.
+
+    Drifts are printed by :func:`~openmm_alphaprk.observables.drift_text` (± standard
+    error, or "not resolved"), energies with three significant digits, as in the figure.
+    """
     lines = [header] if header else []
     lines.append(
-        f"{'integrator':<12} {'steps':>6} {'drift/DOF':>12} {'RMS|H-Eref|':>12} {'max|H-Eref|':>12} "
+        f"{'integrator':<12} {'steps':>6}  {'drift/DOF':<26} {'RMS|H-Eref|':>11} {'max|H-Eref|':>11} "
         f"{'constraint':>11} {'evals/step':>10} {'ns/day':>8}"
     )
     lines.append(
-        f"{'':<12} {'':>6} {'kJ/mol/ns':>12} {'kJ/mol':>12} {'kJ/mol':>12} {'rel. error':>11} "
-        f"{'':>10} {'':>8}"
+        f"{'':<12} {'':>6}  {'kJ/mol/ns ± std. error':<26} {'kJ/mol':>11} {'kJ/mol':>11} "
+        f"{'rel. error':>11} {'':>10} {'':>8}"
     )
     for s in summaries:
+        drift = drift_text(s.drift_per_dof, s.drift_per_dof_standard_error)
         lines.append(
-            f"{s.integrator:<12} {s.steps:>6} {s.drift_per_dof:>12.3e} {s.rms_residual:>12.4f} "
-            f"{s.max_abs_residual:>12.4f} {s.max_relative_constraint_error:>11.1e} "
+            f"{s.integrator:<12} {s.steps:>6}  {drift:<26} {s.rms_residual:>11.3g} "
+            f"{s.max_abs_residual:>11.3g} {s.max_relative_constraint_error:>11.1e} "
             f"{s.force_evaluations_per_step:>10.2f} {s.ns_per_day:>8.2f}"
         )
-    for s in summaries:
-        if s.controller:
-            c = s.controller
-            lines.append(
-                f"{s.integrator}: per-step |H-Eref| RMS {c['rms_residual']:.4f} kJ/mol "
-                f"over {c['steps']} steps, "
-                f"alpha* median {c['alpha_percentiles']['p50']:.2f} (p5 {c['alpha_percentiles']['p5']:.2f}, "
-                f"p95 {c['alpha_percentiles']['p95']:.2f}), fell back {c['fraction_fallen_back']:.0%}, "
-                f"at bound {c['fraction_at_bound']:.0%}"
-            )
+    lines += textwrap.wrap(ENERGY_NOTE, _WRAP)
+    controllers = [s for s in summaries if s.controller]
+    for s in controllers:
+        lines += textwrap.wrap(controller_line(s.integrator, s.controller), _WRAP, subsequent_indent="  ")
+    if controllers:
+        lines += textwrap.wrap(CONTROLLER_NOTE, _WRAP)
     for s in summaries:
         if s.momentum_change:
             m = s.momentum_change
@@ -240,3 +261,20 @@ def format_table(summaries: Sequence[RunSummary], header: str = "", verlet_note:
     if verlet_note:
         lines.append(VERLET_NOTE)
     return "\n".join(lines)
+
+
+def controller_line(name: str, controller: dict) -> str:
+    """Return the energy mode's line under the table: its statistics over every step, α* over the samples."""
+    c = controller
+    p = c["alpha_percentiles"]
+    residuals = (
+        f"RMS |H - E_ref| {c['rms_residual']:.3g} kJ/mol, max {c['max_abs_residual']:.3g} kJ/mol; "
+        if c["residuals_over"] == EVERY_STEP
+        else ""
+    )
+    return (
+        f"{name} (energy mode), over all {c['steps']} steps: {residuals}fell back on "
+        f"{c['fraction_fallen_back']:.0%} of steps, alpha* at a bound on {c['fraction_at_bound']:.0%}, "
+        f"{c['force_evaluations_per_step']:.2f} force evaluations per step; alpha* median {p['p50']:.2g} "
+        f"(p5 {p['p5']:.2g}, p95 {p['p95']:.2g}) over {c['rows']} sampled steps (controller.csv)"
+    )

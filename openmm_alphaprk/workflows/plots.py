@@ -9,7 +9,7 @@ from collections.abc import Collection, Mapping
 import numpy as np
 
 from ..integrators import names
-from ..observables import drift_per_dof
+from ..observables import DriftFit, drift_text, fit_drift, residual_statistics, rms
 
 #: Title of the H − E_ref figure when none is given.
 RESIDUALS_TITLE = "Energy conservation: H − E_ref per integrator (NVE from the same start)"
@@ -78,29 +78,29 @@ def _is_leapfrog(name: str) -> bool:
         return False
 
 
-def _fit(times: np.ndarray, residuals: np.ndarray) -> tuple[float, np.ndarray, float] | None:
-    """Drift (kJ/mol/ns, the fit of :func:`~openmm_alphaprk.observables.drift_per_dof`), line, noise σ.
-
-    σ is the RMS of H − E_ref about the fitted line (kJ/mol): the per-sample noise.
-    None with fewer than two samples.
-    """
-    if len(times) < 2:
-        return None
-    slope, intercept = np.polyfit(times, residuals, 1)
-    line = slope * times + intercept
-    return drift_per_dof(times, residuals, 1), line, float(np.sqrt(np.mean((residuals - line) ** 2)))
+def _fit(times: np.ndarray, residuals: np.ndarray) -> DriftFit | None:
+    """Return the trace's drift fit (:func:`~openmm_alphaprk.observables.fit_drift`), None below 2 samples."""
+    return fit_drift(times, residuals) if len(times) >= 2 else None
 
 
-def _drift_text(drift: float, dof: int | None) -> str:
-    per_dof = f" ({drift / dof:+.2e} /DOF)" if dof else ""
-    return f"drift {drift:+.3g} kJ/mol/ns{per_dof}"
+def _drift_label(fit: DriftFit, dof: int | None) -> str:
+    """Return the drift as the tables print it: drift/DOF with ``dof``, else the total, ± standard error."""
+    if dof:
+        return "drift/DOF " + drift_text(*fit.per_dof(dof), "kJ/mol/ns")
+    return "drift " + drift_text(fit.slope, fit.standard_error, "kJ/mol/ns")
+
+
+def _rms_label(name: str, residuals: np.ndarray) -> str:
+    """Return the legend entry of a trace on the log panel: its RMS |H − E_ref| as the tables print it."""
+    rms = residual_statistics(residuals)[0]
+    return f"{_display(name)}: RMS {rms:.3g} kJ/mol"
 
 
 def _running_rms(times: np.ndarray, residuals: np.ndarray, window: int) -> tuple[np.ndarray, np.ndarray]:
     """Centred running RMS of H − E_ref over ``window`` samples (valid part only)."""
-    mean_square = np.convolve(residuals**2, np.ones(window) / window, mode="valid")
+    running = rms(np.lib.stride_tricks.sliding_window_view(residuals, window), axis=1)
     start = (window - 1) // 2
-    return times[start : start + len(mean_square)], np.sqrt(mean_square)
+    return times[start : start + len(running)], running
 
 
 def _log_panel(ax, traces: Mapping[str, tuple[np.ndarray, np.ndarray]], colours: Mapping[str, str]) -> None:
@@ -108,7 +108,7 @@ def _log_panel(ax, traces: Mapping[str, tuple[np.ndarray, np.ndarray]], colours:
     floor, ceiling, smoothed = np.inf, 0.0, False
     for name, (times, residuals) in traces.items():
         magnitude = np.abs(residuals)
-        rms = float(np.sqrt(np.mean(residuals**2)))
+        rms = residual_statistics(residuals)[0]
         shown = np.where(magnitude > 0, magnitude, np.nan)
         window = max(1, len(times) // 25)
         thin = window >= 3
@@ -120,7 +120,7 @@ def _log_panel(ax, traces: Mapping[str, tuple[np.ndarray, np.ndarray]], colours:
             lw=0.7 if thin else 1.5,
             alpha=0.35 if thin else 1.0,
             gid=name,
-            label="_" + name if thin else f"{_display(name)}: RMS {rms:.3g} kJ/mol",
+            label="_" + name if thin else _rms_label(name, residuals),
         )
         if thin:
             ax.plot(
@@ -128,7 +128,7 @@ def _log_panel(ax, traces: Mapping[str, tuple[np.ndarray, np.ndarray]], colours:
                 color=colours[name],
                 lw=2.2,
                 gid=name,
-                label=f"{_display(name)}: RMS {rms:.3g} kJ/mol",
+                label=_rms_label(name, residuals),
             )
         if rms > 0:
             floor, ceiling = min(floor, rms / 30), max(ceiling, float(np.nanmax(shown)))
@@ -141,7 +141,11 @@ def _log_panel(ax, traces: Mapping[str, tuple[np.ndarray, np.ndarray]], colours:
     ax.set_xlabel("time (ps)", fontsize=10)
     ax.set_ylabel("|H − E_ref| (kJ/mol, log)", fontsize=10)
     how = "thin: every sample; thick: running RMS" if smoothed else "every sample"
-    ax.set_title(f"|H − E_ref| of the velocity-Verlet integrators on one log scale ({how})", fontsize=11)
+    ax.set_title(
+        f"|H − E_ref| of the velocity-Verlet integrators on one log scale ({how}); "
+        "E_ref = total energy of the start state",
+        fontsize=11,
+    )
     ax.grid(True, which="major", lw=0.4, alpha=0.5)
     legend = ax.legend(loc="upper center", ncol=max(columns, 1), fontsize=9, frameon=False)
     legend.set_in_layout(False)
@@ -166,10 +170,11 @@ def _linear_panel(
     values = [residuals]
     fit = _fit(times, residuals)
     if fit is not None:
-        drift, line, sigma = fit
-        ax.plot(times, line, color="k", ls="--", lw=1.5, gid=name, label=_drift_text(drift, dof))
+        line = fit.line(times)
+        ax.plot(times, line, color="k", ls="--", lw=1.5, gid=name, label=_drift_label(fit, dof))
         if comparable:
-            band = f"±σ noise about the fit, σ = {sigma:.3g} kJ/mol"
+            sigma = fit.scatter
+            band = f"±σ: scatter about the drift line, σ = {sigma:.3g} kJ/mol"
             ax.fill_between(times, line - sigma, line + sigma, color=colour, alpha=0.25, lw=0, label=band)
             values += [line - sigma, line + sigma]
     _with_headroom(ax, np.concatenate(values))
@@ -196,11 +201,15 @@ def build_energy_residual_figure(
 ):
     """Build the H − E_ref figure of a comparison; return the Figure (the caller saves and closes it).
 
-    ``traces`` maps integrator names (or any keys) to (time in ps, H − E_ref in kJ/mol).
-    On top, |H − E_ref| of every comparable integrator on one log axis; below, one linear
-    panel per integrator with its own y-range, its drift line (the least-squares fit of
-    :func:`~openmm_alphaprk.observables.drift_per_dof`, in kJ/mol/ns, and per DOF with
-    ``dof``) and the ±σ band of its per-sample noise about that line. The integrators of
+    ``traces`` maps integrator names (or any keys) to (time in ps, H − E_ref in kJ/mol),
+    each starting at the start state (H − E_ref = 0), as a run's energy rows do.
+    On top, |H − E_ref| of every comparable integrator on one log axis, labelled with its
+    RMS |H − E_ref| (:func:`~openmm_alphaprk.observables.residual_statistics`, the
+    number of the tables); below, one linear panel per integrator with its own y-range,
+    its drift line (:func:`~openmm_alphaprk.observables.fit_drift`), labelled with the
+    drift ± its standard error per DOF with ``dof`` (else in kJ/mol/ns), or "not
+    resolved" (:func:`~openmm_alphaprk.observables.drift_text`), and the ±σ band of the
+    samples' scatter about that line. The integrators of
     ``not_comparable`` (by default ``verlet``, leapfrog) get a separate, grey panel at the
     bottom labelled :data:`NOT_COMPARABLE`, never an axis shared with the others.
     ``caption`` is written under the panels (system, step, platform: see :func:`run_caption`).

@@ -17,16 +17,17 @@ else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
 from ...runs import rundir
-from ...runs.options import DEFAULTS, INTERVALS, PLATFORM_OPTIONS, RunOptions
+from ...runs.options import DEFAULTS, INTERVALS, NAMED_OPTIONS, OPTIONAL_INTERVALS, RunOptions
 
 #: Keys of ``[run]`` (and of a grid): the run options, with times in fs instead of steps.
-_RUN_KEYS = {"duration_ps"} | {f"{name}_fs" for name in INTERVALS} | set(PLATFORM_OPTIONS)
+_RUN_KEYS = {"duration_ps"} | {f"{name}_fs" for name in INTERVALS} | set(NAMED_OPTIONS)
 _GRID_KEYS = {"systems", "integrators", "timesteps_fs", "alphas", "seeds"} | _RUN_KEYS
-_RUN_DEFAULTS: dict[str, Any] = {name: getattr(DEFAULTS, name) for name in PLATFORM_OPTIONS} | {
+_RUN_DEFAULTS: dict[str, Any] = {name: getattr(DEFAULTS, name) for name in NAMED_OPTIONS} | {
     "energy_interval_fs": 20.0,
     "trajectory_interval_fs": 100.0,
     "checkpoint_interval_fs": 1000.0,
     "velocity_interval_fs": None,
+    "controller_interval_fs": None,
 }
 
 
@@ -222,11 +223,11 @@ def _integrators(grid: dict[str, Any], where: str) -> list[str]:
 
 def _run_kwargs(run: dict[str, Any], h: Fraction, where: str) -> dict[str, Any]:
     """Return the run options of a cell with step ``h``: times in fs become steps."""
-    kwargs = {name: run[name] for name in PLATFORM_OPTIONS}
+    kwargs = {name: run[name] for name in NAMED_OPTIONS}
     kwargs["constraint_tolerance"] = float(run["constraint_tolerance"])
     for name in INTERVALS:
         time_fs = run[f"{name}_fs"]
-        if name != "velocity_interval" or time_fs:  # velocities: None or 0 writes no file
+        if name not in OPTIONAL_INTERVALS or time_fs:  # None or 0: no velocities; controller: energy interval
             kwargs[name] = _steps(time_fs, h, f"{where}: {name}_fs")
     return kwargs
 

@@ -1,0 +1,127 @@
+"""Cost of reporting the energy mode's controller: steps/s with and without AlphaControllerReporter.
+
+Two measurements in one process:
+
+1. steps/s with the reporter every step, every 10 steps (the driver's default: the energy
+   interval) and without it, in interleaved rounds (the median of each);
+2. the time of one report by itself, as ``Simulation`` makes it: a ``getState`` (no data,
+   parameters, as OpenMM asks) and the reporter's ``report`` (median of many). Where the
+   machine is shared, (2) is the steadier number; steps/s follow from it as
+   1 / (t_step + t_report / interval).
+
+RATTLE has no controller to report; its rows use a reporter that reads nothing, to show what
+asking ``Simulation`` for a report every step costs by itself (one step per ``integrator.step``
+call and a ``getState`` after each).
+
+    python docs/scripts/reporter_cost.py [--system tip3p-2nm] [--platform CPU] [--rounds 15]
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import tempfile
+import time
+from pathlib import Path
+
+import openmm as mm
+import openmm.app as app
+
+from openmm_alphaprk.integrators.names import make_integrator
+from openmm_alphaprk.runs import AlphaControllerReporter
+from openmm_alphaprk.systems import prepare_system
+
+NONE = "no reporter"
+
+
+class NullReporter:
+    """A reporter that asks for no State data and writes nothing: the cost of a report by itself."""
+
+    def __init__(self, interval: int):
+        self._interval = interval
+
+    def describeNextReport(self, simulation):
+        return {
+            "steps": self._interval - simulation.currentStep % self._interval,
+            "periodic": None,
+            "include": [],
+        }
+
+    def report(self, simulation, state):
+        pass
+
+
+def _rows(folder: Path) -> dict:
+    return {
+        ("energy4", NONE): None,
+        ("energy4", "AlphaControllerReporter every step"): lambda: AlphaControllerReporter(
+            str(folder / "a.csv"), 1
+        ),
+        ("energy4", "AlphaControllerReporter every 10 steps"): lambda: AlphaControllerReporter(
+            str(folder / "b.csv"), 10
+        ),
+        ("rattle", NONE): None,
+        ("rattle", "empty reporter every step"): lambda: NullReporter(1),
+        ("rattle", "empty reporter every 10 steps"): lambda: NullReporter(10),
+    }
+
+
+def _report_time(simulation: app.Simulation, repeats: int) -> float:
+    """Median time (µs) of one report of the simulation's reporter, with OpenMM's getState."""
+    (reporter,) = simulation.reporters
+    groups = simulation.context.getIntegrator().getIntegrationForceGroups()
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        state = simulation.context.getState(groups=groups, enforcePeriodicBox=False, parameters=True)
+        reporter.report(simulation, state)
+        times.append(time.perf_counter() - start)
+    return statistics.median(times) * 1e6
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("--system", default="tip3p-2nm")
+    parser.add_argument("--platform", default="CPU")
+    parser.add_argument("--threads", default=None, help="CPU platform threads (default: OpenMM's)")
+    parser.add_argument("--rounds", type=int, default=15)
+    parser.add_argument("--energy4-steps", type=int, default=20, help="steps of energy4 per round and row")
+    parser.add_argument("--rattle-steps", type=int, default=100, help="steps of RATTLE per round and row")
+    parser.add_argument("--repeats", type=int, default=2000, help="reports timed by themselves")
+    args = parser.parse_args()
+    prepared = prepare_system(args.system, progress=False)
+    platform = mm.Platform.getPlatformByName(args.platform)
+    properties = {"Threads": args.threads} if args.threads else {}
+    rows = _rows(Path(tempfile.mkdtemp(prefix="reporter-cost-")))
+    simulations = {}
+    for (name, how), make in rows.items():
+        integrator = make_integrator(name, 0.002)
+        simulation = app.Simulation(prepared.topology, prepared.system, integrator, platform, properties)
+        simulation.context.setState(prepared.state)
+        if make is not None:
+            simulation.reporters.append(make())
+        simulation.step(10)  # first step: program set-up, E_ref
+        simulations[(name, how)] = simulation
+    rates: dict[tuple[str, str], list[float]] = {key: [] for key in rows}
+    for _ in range(args.rounds):
+        for (name, how), simulation in simulations.items():
+            steps = args.energy4_steps if name == "energy4" else args.rattle_steps
+            start = time.perf_counter()
+            simulation.step(steps)
+            rates[(name, how)].append(steps / (time.perf_counter() - start))
+    threads = f", {args.threads} threads" if args.threads else ""
+    print(f"{args.system} ({prepared.n_atoms} atoms), platform {args.platform}{threads}")
+    print("| integrator | reporting | steps/s (median of rounds) | × no reporter | one report (µs) |")
+    print("| --- | --- | ---: | ---: | ---: |")
+    for (name, how), values in rates.items():
+        median = statistics.median(values)
+        base = statistics.median(rates[(name, NONE)])
+        simulation = simulations[(name, how)]
+        report = f"{_report_time(simulation, args.repeats):.0f}" if simulation.reporters else "–"
+        print(f"| {name} | {how} | {median:.1f} | {median / base:.3f} | {report} |")
+
+
+if __name__ == "__main__":
+    main()
