@@ -8,7 +8,7 @@ from .integrators import (
     TimestepUnitWarning,
     restore_integrator,
 )
-from .smooth_forces import NonSmoothForcesWarning, make_smooth, smoothness_problems
+from .smooth_forces import NonSmoothForcesWarning, make_smooth, prepare_for_nve, smoothness_problems
 from .start_blowup import StartBlowUpError
 
 __all__ = [
@@ -20,6 +20,7 @@ __all__ = [
     "StartBlowUpError",
     "TimestepUnitWarning",
     "make_smooth",
+    "prepare_for_nve",
     "restore_integrator",
     "smoothness_problems",
 ]
