@@ -24,4 +24,5 @@ __all__ = [
     "restore_integrator",
     "smoothness_problems",
 ]
+#: The package's version; pyproject.toml reads it from here (``[tool.setuptools.dynamic]``).
 __version__ = "0.1.0"
