@@ -19,6 +19,7 @@ DOCS_GENERATORS = ("reports",)
 
 
 def test_built_package_holds_the_shipped_states_and_the_package_version(tmp_path):
+    """Setuptools (the build backend; in the ``test`` extra) builds the package as pip would."""
     source = tmp_path / "source"
     shutil.copytree(PACKAGE, source / PACKAGE.name, ignore=shutil.ignore_patterns("__pycache__"))
     for name in ("pyproject.toml", "README.md"):
