@@ -2,11 +2,11 @@
 
 Everything here is plain OpenMM (ForceField, Modeller, Simulation, StateDataReporter,
 DCDReporter, CheckpointReporter); only the integrator line differs from a
-VerletIntegrator script, and ``make_smooth(system)``, which switches Lennard-Jones off
-over the last 0.1 nm of the cutoff and tightens PME's error tolerance to 1e-5 so that
-the energy is smooth (docs/smooth_forces.md). NVE needs ``removeCMMotion=False`` (α-RATTLE
-never applies a CMMotionRemover, which would only make OpenMM count 3 degrees of freedom
-fewer in the temperature).
+VerletIntegrator script, and ``prepare_for_nve(system)``, which readies the System
+that ``createSystem`` gives with its defaults for energy-conserving NVE: Lennard-Jones
+switched off over the last 0.1 nm of the cutoff and PME's error tolerance tightened,
+so that the energy is smooth, and the CMMotionRemover removed (α-RATTLE never applies
+it; it would only make OpenMM count 3 degrees of freedom fewer in the temperature).
 
     python examples/simulation_dropin.py --steps 1000 --output dropin-run
 """
@@ -19,7 +19,7 @@ import openmm as mm
 import openmm.app as app
 import openmm.unit as unit
 
-from openmm_alphaprk import AlphaRattleIntegrator, make_smooth
+from openmm_alphaprk import AlphaRattleIntegrator, prepare_for_nve
 
 parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
 parser.add_argument("--steps", type=int, default=1000, help="NVE steps of 2 fs (default 1000)")
@@ -41,14 +41,9 @@ forcefield = app.ForceField("amber14/tip3p.xml")
 modeller = app.Modeller(app.Topology(), [])
 modeller.addSolvent(forcefield, model="tip3p", boxSize=mm.Vec3(2.0, 2.0, 2.0) * unit.nanometers)
 system = forcefield.createSystem(
-    modeller.topology,
-    nonbondedMethod=app.PME,
-    nonbondedCutoff=0.9 * unit.nanometers,
-    constraints=app.HBonds,
-    rigidWater=True,
-    removeCMMotion=False,
+    modeller.topology, nonbondedMethod=app.PME, nonbondedCutoff=0.9 * unit.nanometers, constraints=app.HBonds
 )
-for change in make_smooth(system):  # smooth forces at the cutoff: the energy mode needs them
+for change in prepare_for_nve(system):  # smooth forces, no CMMotionRemover: what the energy mode needs
     print(change)
 
 alpha = args.alpha if args.alpha == "energy" else float(args.alpha)

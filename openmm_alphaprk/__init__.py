@@ -8,7 +8,7 @@ from .integrators import (
     TimestepUnitWarning,
     restore_integrator,
 )
-from .smooth_forces import NonSmoothForcesWarning, make_smooth, smoothness_problems
+from .smooth_forces import NonSmoothForcesWarning, make_smooth, prepare_for_nve, smoothness_problems
 from .start_blowup import StartBlowUpError
 
 __all__ = [
@@ -20,7 +20,9 @@ __all__ = [
     "StartBlowUpError",
     "TimestepUnitWarning",
     "make_smooth",
+    "prepare_for_nve",
     "restore_integrator",
     "smoothness_problems",
 ]
+#: The package's version; pyproject.toml reads it from here (``[tool.setuptools.dynamic]``).
 __version__ = "0.1.0"

@@ -1,6 +1,9 @@
-"""Shared fixtures: a small equilibrated TIP3P box and helpers to run integrators."""
+"""Shared fixtures: a temporary systems cache, a small equilibrated TIP3P box, helpers to run integrators."""
 
 from __future__ import annotations
+
+import os
+from pathlib import Path
 
 import numpy as np
 import openmm as mm
@@ -8,9 +11,24 @@ import openmm.unit as unit
 import pytest
 
 from openmm_alphaprk import observables
-from openmm_alphaprk.systems import build_water_box
+from openmm_alphaprk.systems import CACHE_ENV, build_water_box
 
 REFERENCE = mm.Platform.getPlatformByName("Reference")
+
+
+@pytest.fixture(scope="session", autouse=True)
+def temporary_systems_cache(tmp_path_factory):
+    """Point ``$ALPHAPRK_CACHE_DIR`` at a folder of this session: tests never write into the user's cache.
+
+    Subprocesses (the CLI tests) inherit it. The shipped start states need no cache.
+    """
+    previous = os.environ.get(CACHE_ENV)
+    os.environ[CACHE_ENV] = str(tmp_path_factory.mktemp("systems-cache"))
+    yield Path(os.environ[CACHE_ENV])
+    if previous is None:
+        os.environ.pop(CACHE_ENV, None)
+    else:
+        os.environ[CACHE_ENV] = previous
 
 
 @pytest.fixture(scope="session")

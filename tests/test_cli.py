@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from openmm_alphaprk.observables import drift_text
-from openmm_alphaprk.systems.definitions import DEFINITIONS_DIR
+from openmm_alphaprk.systems.definitions import DEFINITIONS_DIR, load_definition
 
 SCRIPT = Path(sys.executable).with_name("alphaprk")
 
@@ -95,10 +95,43 @@ def test_help_explains_every_option_with_units(tmp_path, cache):
     assert module.stdout == top
 
 
-def test_systems_lists_the_definitions(tmp_path, cache):
-    out = alphaprk("systems", cwd=tmp_path, env_cache=cache).stdout
+def test_systems_lists_the_definitions_and_where_their_states_come_from(tmp_path):
+    out = alphaprk("systems", cwd=tmp_path, env_cache=tmp_path / "empty").stdout
     for name in ("tip3p-3nm", "spce-3nm", "tip4pew-3nm", "water-cluster", "villin"):
         assert name in out
+    assert re.search(r"^tip3p-3nm +shipped ", out, re.M) and re.search(r"^tip3p-4nm +to build ", out, re.M)
+
+
+def test_systems_build_uses_the_shipped_state_and_rebuild_builds(tmp_path):
+    cache = tmp_path / "cache"
+    out = alphaprk("systems", "--build", "water-cluster", cwd=tmp_path, env_cache=cache).stdout
+    assert "water-cluster: 222 atoms, shipped start state" in out and "--rebuild" in out
+    assert not cache.exists()  # nothing built
+    out = alphaprk("systems", "--build", "water-cluster", "--rebuild", cwd=tmp_path, env_cache=cache).stdout
+    assert "water-cluster: 222 atoms, cached in" in out and len(list(cache.glob("water-cluster-*"))) == 1
+    refused = alphaprk("systems", "--rebuild", cwd=tmp_path, env_cache=cache, check=False)
+    assert refused.returncode == 2 and "--rebuild needs the systems to build" in refused.stderr
+
+
+@pytest.mark.parametrize("command", ["run", "compare"])
+def test_rebuild_option_starts_runs_from_a_state_built_here(tmp_path, command):
+    from openmm_alphaprk.systems.cache import system_key
+    from openmm_alphaprk.systems.shipped import shipped_key
+
+    definition = load_definition("water-cluster")
+    keys = {}
+    for rebuild in ((), ("--rebuild",)):
+        output = tmp_path / f"out{len(rebuild)}"
+        args = [command, "water-cluster", "-o", output, "--steps", "2", "--quiet", *rebuild]
+        args += ["-i", "rattle", "--no-plot"] if command == "compare" else ["rattle"]
+        alphaprk(*args, cwd=tmp_path, env_cache=tmp_path / "cache")
+        run_json = output / "run.json" if command == "run" else output / "rattle" / "run.json"
+        keys[bool(rebuild)] = json.loads(run_json.read_text(encoding="utf-8"))["system_key"]
+    assert keys == {False: shipped_key(definition), True: system_key(definition)}
+    if command == "run":  # a run started from a rebuilt state is not continued from the shipped one
+        args = ["run", "water-cluster", "rattle", "-o", tmp_path / "out1", "--steps", "2", "--quiet"]
+        again = alphaprk(*args, cwd=tmp_path, env_cache=tmp_path / "cache", check=False)
+        assert again.returncode == 2 and "system_key: stored" in again.stderr
 
 
 def test_systems_build_caches_a_definition(tmp_path, cache, quick_definition):

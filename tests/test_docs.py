@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import ast
+import inspect
 import re
 from pathlib import Path
 
+from openmm_alphaprk import AlphaRattleIntegrator, RattleIntegrator
 from openmm_alphaprk.integrators.names import parse_integrator
 from openmm_alphaprk.workflows.comparison import DEFAULT_INTEGRATORS
 
@@ -36,3 +39,29 @@ def test_defaults_and_readme_commands_use_the_recommended_energy_mode():
     for command in commands:
         names = command.split("#")[0].split()
         assert "energy" not in names, command
+
+
+def _readme_signature(name: str) -> inspect.Signature:
+    """The signature the README's "Use" section gives for ``name(...)``, parsed as Python."""
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    match = re.search(rf"`{name}\((timestep[^`]*)\)`", text)
+    assert match, f"the README gives {name}'s signature"
+    parameters = " ".join(match.group(1).split())
+    try:
+        (function,) = ast.parse(f"def f({parameters}): pass").body
+    except SyntaxError:
+        raise AssertionError(f"the README's {name}({parameters}) is not a Python signature") from None
+    namespace: dict = {}
+    exec(compile(ast.Module([function], []), "README", "exec"), namespace)
+    return inspect.signature(namespace["f"])
+
+
+def test_readme_signatures_are_the_real_ones():
+    for cls in (AlphaRattleIntegrator, RattleIntegrator):
+        real = inspect.signature(cls.__init__).replace(
+            parameters=list(inspect.signature(cls.__init__).parameters.values())[1:]
+        )
+        written = _readme_signature(cls.__name__)
+        assert [(p.name, p.kind, p.default) for p in written.parameters.values()] == [
+            (p.name, p.kind, p.default) for p in real.parameters.values()
+        ], cls.__name__

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -28,12 +29,14 @@ def _run(script: str, *args, cwd, env) -> str:
         timeout=120,
     )
     assert result.returncode == 0, result.stderr
+    assert "NonSmoothForcesWarning" not in result.stderr, result.stderr
     return result.stdout
 
 
 def test_dropin_simulation_script(tmp_path, env):
     out = _run("simulation_dropin.py", "--steps", "20", "--output", "run", cwd=tmp_path, env=env)
     assert "force evaluations per step" in out
+    assert re.search(r"^CMMotionRemover \(force \d+\): removed", out, re.M)  # createSystem's default
     rows = (tmp_path / "run" / "energies.csv").read_text(encoding="utf-8").splitlines()
     assert rows[0].startswith("#") and len(rows) == 3  # header + steps 10, 20
 

@@ -18,9 +18,11 @@ from openmm_alphaprk import (
     RattleIntegrator,
     StartBlowUpError,
     make_smooth,
+    prepare_for_nve,
     smoothness_problems,
 )
 from openmm_alphaprk import start_blowup as start_blowup_module
+from openmm_alphaprk.smooth_forces import SMOOTH_EWALD_TOLERANCE
 
 
 @pytest.fixture(scope="module")
@@ -297,6 +299,52 @@ def test_make_smooth_refuses_a_switch_wider_than_the_cutoff_and_changes_nothing(
         ValueError, match=r"cutoff 0.9 nm minus switch_width 1 nm .*switch_width below 0.9 nm"
     ):
         make_smooth(system, switch_width=1.0)
+    assert mm.XmlSerializer.serialize(system) == before
+
+
+# ------------------------------------------------------------------ prepare_for_nve
+def test_prepare_for_nve_readies_a_default_create_system_and_the_energy_mode_does_not_warn(water):
+    forcefield, topology, positions = water
+    system = forcefield.createSystem(  # OpenMM's defaults: CMMotionRemover, no switch, Ewald 5e-4
+        topology, nonbondedMethod=app.PME, nonbondedCutoff=0.9 * unit.nanometers, constraints=app.HBonds
+    )
+    assert len(smoothness_problems(system)) == 3
+    assert len(make_smooth(system)) == 2 and len(smoothness_problems(system)) == 1  # the CMMotionRemover
+    system = forcefield.createSystem(
+        topology, nonbondedMethod=app.PME, nonbondedCutoff=0.9 * unit.nanometers, constraints=app.HBonds
+    )
+    remover = next(i for i, f in enumerate(system.getForces()) if isinstance(f, mm.CMMotionRemover))
+    changes = prepare_for_nve(system)
+    assert len(changes) == 3 and changes[2].startswith(f"CMMotionRemover (force {remover}): removed (")
+    assert smoothness_problems(system) == []
+    nonbonded = next(f for f in system.getForces() if isinstance(f, mm.NonbondedForce))
+    assert nonbonded.getEwaldErrorTolerance() == SMOOTH_EWALD_TOLERANCE
+    integrator = AlphaRattleIntegrator(0.001, alpha="energy", order=4)
+    context = _context(system, integrator, positions)
+    with warnings.catch_warnings(record=True) as record:
+        warnings.simplefilter("always")
+        integrator.step(2)
+    assert not _ours(record)
+    assert prepare_for_nve(system) == []  # idempotent
+    del context
+
+
+def test_prepare_for_nve_removes_barostats_and_thermostats_and_names_original_indices():
+    system = _small_system(
+        mm.MonteCarloBarostat(1.0, 300.0), _nonbonded(switch=None), mm.AndersenThermostat(300.0, 1.0)
+    )
+    changes = prepare_for_nve(system)
+    assert changes[0].startswith("NonbondedForce (force 1): no switching function")
+    assert changes[1].startswith("MonteCarloBarostat (force 0): removed (NVE keeps the box volume fixed")
+    assert changes[2].startswith("AndersenThermostat (force 2): removed (NVE imposes no temperature")
+    assert [type(f).__name__ for f in system.getForces()] == ["NonbondedForce"]
+
+
+def test_prepare_for_nve_changes_nothing_when_the_switch_is_refused():
+    system = _small_system(_nonbonded(switch=None, ewald=5e-4), mm.CMMotionRemover())
+    before = mm.XmlSerializer.serialize(system)
+    with pytest.raises(ValueError, match="switch_width"):
+        prepare_for_nve(system, switch_width=1.0)
     assert mm.XmlSerializer.serialize(system) == before
 
 

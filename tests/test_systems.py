@@ -1,10 +1,16 @@
-"""Systems: definitions, cache keyed on content, every system with every integrator."""
+"""Systems: definitions, shipped start states, cache keyed on content, every system with every integrator."""
 
 from __future__ import annotations
 
+import gzip
+import json
+import os
+import shutil
 import time
+from pathlib import Path
 
 import numpy as np
+import openmm as mm
 import openmm.unit as unit
 import pytest
 from quick_systems import QUICK, quick_system
@@ -12,15 +18,27 @@ from quick_systems import QUICK, quick_system
 from openmm_alphaprk.integrators.names import IncompatibleSystemError
 from openmm_alphaprk.runs import run_nve
 from openmm_alphaprk.systems import (
+    CACHE_ENV,
     DefinitionError,
+    ShippedStateWarning,
     UnknownSystemError,
+    default_cache_dir,
+    find_shipped_state,
     list_systems,
     load_definition,
     prepare_system,
 )
+from openmm_alphaprk.systems import cache as cache_module
+from openmm_alphaprk.systems import shipped as shipped_module
+from openmm_alphaprk.systems.build import build_model
+from openmm_alphaprk.systems.cache import system_key
+from openmm_alphaprk.systems.definitions import DEFINITIONS_DIR
+from openmm_alphaprk.systems.shipped import STATES_DIR, shipped_key, topology_fingerprint
 
 INTEGRATORS = ("rattle", "alpha=1/6", "energy", "verlet")
 EXPECTED = {"tip3p-2nm", "tip3p-3nm", "tip3p-4nm", "spce-3nm", "tip4pew-3nm", "water-cluster", "villin"}
+#: The main job's system and the small ones the tests use start from shipped states.
+SHIPPED = {"tip3p-3nm", "tip3p-2nm", "water-cluster"}
 
 
 @pytest.fixture(scope="module")
@@ -63,6 +81,102 @@ def test_cache_is_keyed_on_content(tmp_path):
     assert not np.array_equal(other.velocities, first.velocities)
 
 
+def test_tests_use_a_temporary_cache(tmp_path_factory):
+    assert Path(os.environ[CACHE_ENV]).is_relative_to(tmp_path_factory.getbasetemp())
+    assert default_cache_dir() == Path(os.environ[CACHE_ENV])
+
+
+# ------------------------------------------------------------------ shipped start states
+def _refuse_to_build(monkeypatch):
+    def refuse(*args, **kwargs):
+        raise AssertionError("equilibrated a system whose start state is shipped")
+
+    monkeypatch.setattr(cache_module, "equilibrate", refuse)
+
+
+def _shipped_xml(name: str) -> str:
+    with gzip.open(STATES_DIR / f"{name}.xml.gz", "rt", encoding="utf-8") as handle:
+        return handle.read()
+
+
+def test_main_system_starts_from_the_shipped_state_bit_for_bit_without_building(tmp_path, monkeypatch):
+    _refuse_to_build(monkeypatch)
+    monkeypatch.setattr(mm, "__version__", "99.0")  # another OpenMM version: the same shipped state
+    start = time.perf_counter()
+    prepared = prepare_system("tip3p-3nm", cache_dir=tmp_path)
+    assert time.perf_counter() - start < 10  # a build takes 20-30 s
+    assert prepared.source == "shipped" and not prepared.from_cache
+    assert prepared.path == STATES_DIR / "tip3p-3nm.xml.gz"
+    assert mm.XmlSerializer.serialize(prepared.state) == _shipped_xml("tip3p-3nm")
+    assert prepared.key == shipped_key(prepared.definition) != system_key(prepared.definition)
+    assert not any(tmp_path.iterdir())  # nothing built, nothing cached
+
+
+def test_every_shipped_state_matches_its_definition_and_system():
+    """A definition changed without `python -m openmm_alphaprk.systems.shipped NAME` fails here."""
+    records = sorted(STATES_DIR.glob("*.json"))
+    assert SHIPPED <= {record.stem for record in records}
+    for record in records:
+        meta = json.loads(record.read_text(encoding="utf-8"))
+        definition = load_definition(meta["name"])
+        assert meta["key"] == shipped_key(definition), f"{record.name} is stale: ship {meta['name']} again"
+        assert find_shipped_state(definition) == record
+        topology, _, _ = build_model(definition)
+        assert (topology.getNumAtoms(), topology_fingerprint(topology)) == (
+            meta["n_atoms"],
+            meta["topology_sha256"],
+        )
+        prepared = prepare_system(definition, use_cache=False)
+        assert prepared.source == "shipped" and prepared.n_atoms == meta["n_atoms"]
+        x, v = prepared.positions, prepared.velocities
+        for k in range(prepared.system.getNumConstraints()):
+            i, j, d = prepared.system.getConstraintParameters(k)
+            d = d.value_in_unit(unit.nanometers)
+            assert abs(np.linalg.norm(x[j] - x[i]) - d) / d < 1e-7
+            assert abs(np.dot(v[j] - v[i], x[j] - x[i])) < 1e-8
+
+
+def test_changed_definition_is_built_not_started_from_the_shipped_state(tmp_path):
+    same = tmp_path / "my-cluster.toml"
+    source = (DEFINITIONS_DIR / "water-cluster.toml").read_text(encoding="utf-8")
+    same.write_text(source.replace('description = "', 'description = "renamed: '), encoding="utf-8")
+    assert prepare_system(same, cache_dir=tmp_path).source == "shipped"  # the same content
+    changed = tmp_path / "water-cluster.toml"  # the same name, another protocol
+    changed.write_text(source.replace("langevin_steps = 1000", "langevin_steps = 10"), encoding="utf-8")
+    prepared = prepare_system(changed, cache_dir=tmp_path)
+    assert prepared.source == "built" and prepared.path.is_dir()
+    assert prepared.key == system_key(prepared.definition)
+    assert find_shipped_state(prepared.definition) is None
+    overridden = prepare_system("water-cluster", cache_dir=tmp_path, overrides=QUICK)
+    assert overridden.source == "built"
+
+
+def test_shipped_state_for_other_atoms_is_not_used_and_says_why(tmp_path, monkeypatch):
+    states = tmp_path / "states"
+    states.mkdir()
+    shutil.copy(STATES_DIR / "water-cluster.xml.gz", states)
+    meta = json.loads((STATES_DIR / "water-cluster.json").read_text(encoding="utf-8"))
+    meta.update(n_atoms=225, openmm_version="7.0")  # as if another OpenMM's Modeller added a water
+    (states / "water-cluster.json").write_text(json.dumps(meta), encoding="utf-8")
+    monkeypatch.setattr(shipped_module, "STATES_DIR", states)
+    with pytest.warns(ShippedStateWarning, match=r"OpenMM 7\.0 for 225 atoms.*222 atoms.*not used") as record:
+        prepared = prepare_system("water-cluster", cache_dir=tmp_path / "cache", overrides=None)
+    assert record[0].filename == __file__
+    assert prepared.source == "built" and prepared.n_atoms == 222
+
+
+def test_rebuild_builds_and_replaces_the_cache_entry(tmp_path):
+    rebuilt = prepare_system("water-cluster", cache_dir=tmp_path, rebuild=True)
+    assert rebuilt.source == "built" and (rebuilt.path / "state.xml").is_file()
+    assert rebuilt.key == system_key(rebuilt.definition)
+    (rebuilt.path / "marker").touch()
+    again = prepare_system("water-cluster", cache_dir=tmp_path, rebuild=True)
+    assert again.source == "built" and again.path == rebuilt.path
+    assert not (again.path / "marker").exists()  # replaced, not kept
+    assert [p.name for p in tmp_path.iterdir()] == [again.path.name]  # the old entry is gone
+    assert prepare_system("water-cluster", cache_dir=tmp_path).source == "shipped"  # without rebuild
+
+
 def test_equilibrated_state_is_consistent(cache):
     prepared = quick_system("tip3p-2nm", cache)
     x, v = prepared.positions, prepared.velocities
@@ -88,9 +202,17 @@ def test_cluster_is_isolated_and_at_rest(cache):
     assert prepared.n_atoms > 150
 
 
+def _start(name: str, cache):
+    """The shipped start state where there is one (no build), else a quick build."""
+    definition = load_definition(name)
+    if find_shipped_state(definition) is not None:
+        return prepare_system(definition, cache_dir=cache)
+    return quick_system(name, cache)
+
+
 @pytest.mark.parametrize("name", sorted(EXPECTED))
 def test_every_system_runs_every_integrator(name, cache, tmp_path):
-    prepared = quick_system(name, cache)
+    prepared = _start(name, cache)
     for integrator in INTEGRATORS:
         output = tmp_path / integrator.replace("/", "_")
         if name.startswith("tip4pew") and integrator != "verlet":

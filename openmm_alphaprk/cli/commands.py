@@ -44,19 +44,48 @@ def _run_options(args) -> RunOptions:
 
 
 def cmd_systems(args) -> int:
-    from ..systems import is_cached, list_systems, load_definition, prepare_system
+    from ..systems import find_shipped_state, is_cached, list_systems, load_definition
 
+    if args.rebuild and not args.build:
+        raise ValueError("--rebuild needs the systems to build: alphaprk systems --build NAME ... --rebuild")
     if args.build:
         for name in args.build:
-            prepared = prepare_system(name, cache_dir=args.cache_dir, progress=not args.quiet)
-            print(f"{prepared.name}: {prepared.n_atoms} atoms, cached in {prepared.path}")
+            _print_prepared(_prepare(name, args, rebuild=args.rebuild))
         return 0
-    print(f"{'system':<14} {'cached':<7} description")
+    print(f"{'system':<14} {'start':<9} description")
     for name in list_systems():
         definition = load_definition(name)
-        cached = "yes" if is_cached(definition, args.cache_dir) else "no"
-        print(f"{name:<14} {cached:<7} {definition.description}")
+        if find_shipped_state(definition) is not None:
+            start = "shipped"
+        else:
+            start = "cached" if is_cached(definition, args.cache_dir) else "to build"
+        print(f"{name:<14} {start:<9} {definition.description}")
     return 0
+
+
+def _prepare(name: str, args, rebuild: bool, specs=()):
+    """Return ``prepare_system(name)`` with the CLI's cache and progress, checked against ``specs``."""
+    from ..integrators.names import check_compatible
+    from ..systems import prepare_system
+
+    platform = getattr(args, "platform", "CPU")
+    return prepare_system(
+        name,
+        cache_dir=args.cache_dir,
+        rebuild=rebuild,
+        progress=not args.quiet,
+        check=lambda system: [check_compatible(spec, system, repr(str(name)), platform) for spec in specs],
+    )
+
+
+def _print_prepared(prepared) -> None:
+    if prepared.source == "shipped":
+        print(
+            f"{prepared.name}: {prepared.n_atoms} atoms, shipped start state {prepared.path} "
+            "(--rebuild builds it here)"
+        )
+    else:
+        print(f"{prepared.name}: {prepared.n_atoms} atoms, cached in {prepared.path}")
 
 
 def cmd_run(args) -> int:
@@ -67,7 +96,8 @@ def cmd_run(args) -> int:
     spec = parse_integrator(args.integrator)
     options = _run_options(args)
     output = args.output or f"alphaprk-run-{args.system}-{run_directory_name(spec)}"
-    summary = run_nve(args.system, spec, output, options)
+    system = _prepare(args.system, args, rebuild=True, specs=[spec]) if args.rebuild else args.system
+    summary = run_nve(system, spec, output, options)
     if args.json:
         print(json.dumps(summary.as_dict(), indent=2))
         print(f"run directory: {output}", file=sys.stderr)
@@ -89,11 +119,11 @@ def _run_header(summary) -> str:
 def cmd_compare(args) -> int:
     from ..workflows.comparison import compare
 
-    for name in args.integrators:
-        parse_integrator(name)
+    specs = [parse_integrator(name) for name in args.integrators]
     options = _run_options(args)
     output = args.output or f"alphaprk-compare-{args.system}"
-    result = compare(args.system, args.integrators, output, options, plot=not args.no_plot)
+    system = _prepare(args.system, args, rebuild=True, specs=specs) if args.rebuild else args.system
+    result = compare(system, args.integrators, output, options, plot=not args.no_plot)
     print(result.table)
     print(
         f"\nresults: {result.output / 'comparison.json'}"

@@ -43,12 +43,18 @@ def build_parser() -> argparse.ArgumentParser:
 def _add_systems_parser(sub) -> None:
     systems = sub.add_parser(
         "systems",
-        help="list the ready-made systems (and build/cache them)",
-        description="List the system definitions; with --build, build and cache the named ones now.",
+        help="list the ready-made systems and where their start states come from (and build them)",
+        description=(
+            "List the system definitions and where each one's start state comes from: 'shipped' (with the "
+            "package, the same on every machine), 'cached' (built here before) or 'to build'. With --build, "
+            "prepare the named ones now: a shipped state is used as it is, anything else is built "
+            "(minimized and equilibrated) and cached; --rebuild builds them here even so."
+        ),
     )
     systems.add_argument(
-        "--build", nargs="+", metavar="SYSTEM", default=None, help="build and cache these systems now"
+        "--build", nargs="+", metavar="SYSTEM", default=None, help="prepare these systems now"
     )
+    _add_rebuild(systems)
     _add_common(systems)
 
 
@@ -82,6 +88,7 @@ def _add_run_parser(sub) -> None:
         action="store_true",
         help="print the summary as JSON (what summary.json holds) instead of the table",
     )
+    _add_rebuild(run)
     _add_run_options(run)
 
 
@@ -117,6 +124,7 @@ def _add_compare_parser(sub) -> None:
         help="output folder (default: alphaprk-compare-<system> in the current directory, created there)",
     )
     comp.add_argument("--no-plot", action="store_true", help="skip the figure (no matplotlib needed)")
+    _add_rebuild(comp)
     _add_run_options(comp)
 
 
@@ -269,6 +277,16 @@ def _add_interval_options(parser: argparse.ArgumentParser) -> None:
         help="also write a checkpoint after this much wall time, in seconds (default "
         f"{DEFAULTS.checkpoint_seconds:g}); Ctrl-C writes one too and says from which step the same "
         "command resumes",
+    )
+
+
+def _add_rebuild(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--rebuild",
+        action="store_true",
+        help="build the start state here from the definition (minimize, equilibrate; replaces the cache "
+        "entry) instead of using the shipped or cached one; a later call without --rebuild uses the "
+        "shipped state again where there is one",
     )
 
 

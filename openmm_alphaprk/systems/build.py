@@ -16,6 +16,8 @@ from .definitions import DefinitionError, SystemDefinition
 
 #: Constraint tolerance of the final projection of the equilibrated state (relative).
 FINAL_CONSTRAINT_TOLERANCE = 1e-12
+#: Bumped when the build code changes what a definition produces (part of the cache and shipped keys).
+BUILDER_VERSION = "1"
 
 
 def build_model(definition: SystemDefinition) -> tuple[app.Topology, list, app.ForceField]:

@@ -1,4 +1,10 @@
-"""Equilibrated systems, built once and cached as OpenMM XML keyed on the definition's content."""
+"""Equilibrated systems: shipped with the package, or built once and cached as OpenMM XML.
+
+:func:`prepare_system` returns, in this order: the shipped start state of a
+definition (:mod:`.shipped`; the default systems), the state cached in
+:func:`default_cache_dir` under a key of the definition's content, or a state built
+now (minimized and equilibrated) and cached.
+"""
 
 from __future__ import annotations
 
@@ -17,13 +23,12 @@ import openmm as mm
 import openmm.app as app
 import openmm.unit as unit
 
-from .build import build_model, create_system, equilibrate
+from .build import BUILDER_VERSION, build_model, create_system, equilibrate
 from .definitions import SystemDefinition, definition_key, load_definition
+from .shipped import load_shipped_state
 
 #: Environment variable that overrides the cache folder.
 CACHE_ENV = "ALPHAPRK_CACHE_DIR"
-#: Bumped when the build code changes what a definition produces (invalidates old entries).
-BUILDER_VERSION = "1"
 
 
 @dataclass
@@ -35,13 +40,17 @@ class PreparedSystem:
     name, definition
         Which definition it was built from.
     key
-        Content hash of the definition, OpenMM version and builder version.
+        Identifies the start state: for a shipped state the hash of the definition's
+        content and the builder version (:func:`~.shipped.shipped_key`), for a state
+        built here also of the OpenMM version (:func:`system_key`).
     topology, system, state
         The OpenMM objects; ``state`` holds positions, velocities and box vectors.
     path
-        Cache folder the files were read from (None if built without a cache).
-    from_cache
-        True if this call read it from the cache instead of building it.
+        The shipped state file or the cache folder the state was read from or written
+        to (None if built without a cache).
+    source
+        ``"shipped"`` (the package's state), ``"cache"`` (read from the cache) or
+        ``"built"`` (minimized and equilibrated by this call).
     """
 
     name: str
@@ -51,7 +60,12 @@ class PreparedSystem:
     system: mm.System
     state: mm.State
     path: Path | None = None
-    from_cache: bool = False
+    source: str = "built"
+
+    @property
+    def from_cache(self) -> bool:
+        """True if the state was read from the cache (not shipped, not built by this call)."""
+        return self.source == "cache"
 
     @property
     def n_atoms(self) -> int:
@@ -96,10 +110,17 @@ def prepare_system(
     cache_dir: str | os.PathLike | None = None,
     overrides: dict | None = None,
     use_cache: bool = True,
+    rebuild: bool = False,
     progress: bool = False,
     check: Callable[[mm.System], None] | None = None,
 ) -> PreparedSystem:
-    """Return the equilibrated system ``name``, from the cache or built (and cached) now.
+    """Return the equilibrated system ``name``: shipped, cached, or built (and cached) now.
+
+    Without ``rebuild``, a definition whose content has a shipped start state
+    (:mod:`openmm_alphaprk.systems.shipped`; ``alphaprk systems`` lists them) starts
+    from that state, the same on every machine, with its System made here from the
+    definition; the cache is not consulted for it. Any other definition is read from
+    the cache, or built (minimized and equilibrated) and cached.
 
     Parameters
     ----------
@@ -109,10 +130,14 @@ def prepare_system(
     cache_dir
         Cache root; default :func:`default_cache_dir`.
     overrides
-        ``{"equilibration.langevin_steps": 10, ...}``: changed entries (cached under
-        their own key).
+        ``{"equilibration.langevin_steps": 10, ...}``: changed entries (their own
+        key: cached separately, never started from the original's shipped state).
     use_cache
-        If false, build without reading or writing the cache.
+        If false, neither read nor write the cache (a shipped state is still used).
+    rebuild
+        Build the state now even if a shipped or cached one exists; the build
+        replaces the cache entry (if ``use_cache``). A definition with a shipped state
+        starts from the shipped state again at the next call without ``rebuild``.
     progress
         Show a progress bar while equilibrating.
     check
@@ -126,17 +151,35 @@ def prepare_system(
     """
     definition = name if isinstance(name, SystemDefinition) else load_definition(name)
     definition = definition.with_overrides(overrides)
-    key = system_key(definition)
-    path = cache_path(definition, cache_dir)
-    if use_cache and (path / "state.xml").is_file():
-        prepared = _read(path, definition, key)
+    prepared = None if rebuild else _shipped_or_cached(definition, cache_dir, use_cache)
+    if prepared is not None:
         if check is not None:
             check(prepared.system)
         return prepared
-    prepared = _build(definition, key, path if use_cache else None, progress, check)
-    if use_cache:
-        prepared.path = path
-    return prepared
+    path = cache_path(definition, cache_dir) if use_cache else None
+    return _build(definition, system_key(definition), path, progress, check, replace=rebuild)
+
+
+def _shipped_or_cached(
+    definition: SystemDefinition, cache_dir: str | os.PathLike | None, use_cache: bool
+) -> PreparedSystem | None:
+    """Return the shipped state of ``definition``, else its cache entry (if ``use_cache``), else None."""
+    shipped = load_shipped_state(definition)
+    if shipped is not None:
+        return PreparedSystem(
+            definition.name,
+            definition,
+            shipped.key,
+            shipped.topology,
+            shipped.system,
+            shipped.state,
+            shipped.path,
+            source="shipped",
+        )
+    path = cache_path(definition, cache_dir)
+    if use_cache and (path / "state.xml").is_file():
+        return _read(path, definition, system_key(definition))
+    return None
 
 
 def _build(
@@ -145,8 +188,12 @@ def _build(
     path: Path | None,
     progress: bool,
     check: Callable[[mm.System], None] | None,
+    replace: bool = False,
 ) -> PreparedSystem:
-    """Build and equilibrate ``definition``; write it into the cache folder ``path`` unless None."""
+    """Build and equilibrate ``definition``; write it into the cache folder ``path`` unless None.
+
+    With ``replace`` an existing entry at ``path`` is replaced, else it is kept.
+    """
     topology, positions, forcefield = build_model(definition)
     system = create_system(definition, topology, forcefield)
     if check is not None:
@@ -154,21 +201,25 @@ def _build(
     if progress:
         where = f"; cached in {path}" if path is not None else ""
         print(
-            f"building {definition.name} ({system.getNumParticles()} atoms): minimizing and equilibrating, "
-            f"once{where}",
+            f"building {definition.name} ({system.getNumParticles()} atoms): minimizing and equilibrating"
+            f"{where}",
             file=sys.stderr,
             flush=True,
         )
     start = time.perf_counter()
     state = equilibrate(definition, system, positions, progress=progress)
-    prepared = PreparedSystem(definition.name, definition, key, topology, system, state)
+    prepared = PreparedSystem(definition.name, definition, key, topology, system, state, path)
     if path is not None:
-        _write(prepared, path, build_seconds=time.perf_counter() - start)
+        _write(prepared, path, build_seconds=time.perf_counter() - start, replace=replace)
     return prepared
 
 
-def _write(prepared: PreparedSystem, path: Path, build_seconds: float) -> None:
-    """Write into a temporary sibling folder, then rename it into place (atomic)."""
+def _write(prepared: PreparedSystem, path: Path, build_seconds: float, replace: bool = False) -> None:
+    """Write into a temporary sibling folder, then rename it into place (atomic).
+
+    An existing entry is kept (another process cached the same key first), unless
+    ``replace``: then it is moved aside and removed once the new one is in place.
+    """
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", dir=path.parent))
     try:
@@ -187,10 +238,16 @@ def _write(prepared: PreparedSystem, path: Path, build_seconds: float) -> None:
         (tmp / "definition.json").write_text(json.dumps(meta, indent=2), encoding="utf-8")
         # state.xml last: its presence marks a complete entry
         (tmp / "state.xml").write_text(mm.XmlSerializer.serialize(prepared.state), encoding="utf-8")
+        old = None
+        if replace and path.exists():
+            old = Path(tempfile.mkdtemp(prefix=f".{path.name}.old.", dir=path.parent))
+            os.replace(path, old / "entry")
         try:
             os.replace(tmp, path)
         except OSError:  # another process cached the same key first; keep theirs
             shutil.rmtree(tmp, ignore_errors=True)
+        if old is not None:
+            shutil.rmtree(old, ignore_errors=True)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
@@ -210,7 +267,7 @@ def _read(path: Path, definition: SystemDefinition, key: str) -> PreparedSystem:
         raise RuntimeError(
             f"cache entry {path} is inconsistent (topology and system sizes differ); delete it."
         )
-    return PreparedSystem(definition.name, definition, key, topology, system, state, path, from_cache=True)
+    return PreparedSystem(definition.name, definition, key, topology, system, state, path, source="cache")
 
 
 def is_cached(definition: SystemDefinition, cache_dir: str | os.PathLike | None = None) -> bool:

@@ -71,7 +71,7 @@ def build_water_box(
     -----
     The defaults make the forces smooth at the cutoff, as an energy-conservation
     study needs (with OpenMM's defaults the energy error of a water box is pairs
-    crossing the cutoff, not the integrator's; measured in docs/smooth_forces.md).
+    crossing the cutoff, not the integrator's; see :mod:`openmm_alphaprk.smooth_forces`).
     """
     edge = to_float(box_size, unit.nanometers, "box_size", positive=True)
     rc = to_float(cutoff, unit.nanometers, "cutoff", positive=True)

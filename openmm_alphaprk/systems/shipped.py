@@ -1,0 +1,204 @@
+"""Start states shipped with the package, so that a named system starts from the same state everywhere.
+
+A system's start state comes from a seeded minimization and Langevin equilibration on
+the CPU platform, whose multithreaded force sums are not bitwise reproducible: two
+machines that build the same definition get start states that differ in the last
+digits, and the runs from them part ways. The package therefore ships the
+equilibrated states of its default systems in ``states/`` next to this module:
+``NAME.xml.gz`` (the OpenMM ``State`` of ``XmlSerializer``: positions, velocities and
+box vectors, gzipped) and ``NAME.json`` (the key and the record of how it was built).
+
+Only the State is shipped. The System and the topology are made again from the
+definition by ForceField and Modeller (:func:`~.build.build_model`,
+:func:`~.build.create_system`), which take no random input, so they do not depend on
+where they are made, and a System XML written by one OpenMM version is not
+guaranteed to load in another. The shipped key hashes the definition's content and
+the builder version but not the OpenMM version: the state is positions and
+velocities, valid under any OpenMM that builds the same atoms. Before it is used, the
+topology built here is compared with the one the state was built for (atom count and
+the SHA-256 of every atom's residue, name and element); if they differ, the state is
+not used and :func:`load_shipped_state` warns (:class:`ShippedStateWarning`).
+
+A changed definition has another key and finds no shipped state: it is built, never
+started from a stale state. ``python -m openmm_alphaprk.systems.shipped NAME ...``
+builds the named systems and writes their shipped files (for the package's
+maintainers, after a definition changed).
+"""
+
+from __future__ import annotations
+
+import argparse
+import gzip
+import hashlib
+import json
+import os
+import sys
+import tempfile
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import openmm as mm
+import openmm.app as app
+
+from .build import BUILDER_VERSION, build_model, create_system
+from .definitions import SystemDefinition, definition_key, load_definition
+
+if TYPE_CHECKING:
+    from .cache import PreparedSystem
+
+#: Folder of the shipped states (package data).
+STATES_DIR = Path(__file__).parent / "states"
+
+
+class ShippedStateWarning(UserWarning):
+    """A shipped start state matches a definition but not the topology OpenMM builds here."""
+
+
+@dataclass
+class ShippedState:
+    """A shipped start state with the System and topology made here from its definition."""
+
+    key: str
+    topology: app.Topology
+    system: mm.System
+    state: mm.State
+    path: Path
+
+
+def shipped_key(definition: SystemDefinition) -> str:
+    """Key of a shipped state: the definition's content and :data:`~.build.BUILDER_VERSION`.
+
+    Unlike the cache key it leaves out the OpenMM version (the state is positions,
+    velocities and box, valid under any version that builds the same atoms).
+    """
+    return definition_key(definition, "shipped", BUILDER_VERSION)
+
+
+def topology_fingerprint(topology: app.Topology) -> str:
+    """SHA-256 of every atom's residue name, atom name and element, in order."""
+    lines = (
+        f"{atom.residue.name} {atom.name} {atom.element.symbol if atom.element is not None else '-'}"
+        for atom in topology.atoms()
+    )
+    return hashlib.sha256("\n".join(lines).encode()).hexdigest()
+
+
+def find_shipped_state(definition: SystemDefinition, directory: Path | None = None) -> Path | None:
+    """Return the ``.json`` record of the shipped state whose key is ``definition``'s, or None.
+
+    ``directory``: where to look (default :data:`STATES_DIR`).
+    """
+    key = shipped_key(definition)
+    for record in sorted((STATES_DIR if directory is None else Path(directory)).glob("*.json")):
+        if json.loads(record.read_text(encoding="utf-8")).get("key") == key:
+            return record
+    return None
+
+
+def load_shipped_state(definition: SystemDefinition, directory: Path | None = None) -> ShippedState | None:
+    """Return the shipped start state of ``definition`` with its System and topology made here.
+
+    ``directory``: where to look (default :data:`STATES_DIR`). Returns None if no
+    state is shipped for this definition's content. Warns (:class:`ShippedStateWarning`)
+    and returns None if one is, but the topology built here from the definition
+    differs from the one the state was built for.
+    """
+    record = find_shipped_state(definition, directory)
+    if record is None:
+        return None
+    meta = json.loads(record.read_text(encoding="utf-8"))
+    topology, _, forcefield = build_model(definition)
+    fingerprint = topology_fingerprint(topology)
+    if (topology.getNumAtoms(), fingerprint) != (meta["n_atoms"], meta["topology_sha256"]):
+        warnings.warn(
+            f"the shipped start state of {definition.name!r} ({record.with_suffix('.xml.gz').name}) was "
+            f"built with OpenMM {meta['openmm_version']} for {meta['n_atoms']} atoms; OpenMM "
+            f"{mm.__version__} builds {topology.getNumAtoms()} atoms"
+            + (" in another order" if topology.getNumAtoms() == meta["n_atoms"] else "")
+            + " from the same definition, so the shipped state is not used and the system is built here "
+            "(its numbers will differ from the README's). Use the OpenMM version named above to start "
+            "from the shipped state.",
+            ShippedStateWarning,
+            stacklevel=_stacklevel_outside_package(),
+        )
+        return None
+    path = record.with_suffix(".xml.gz")
+    with gzip.open(path, "rt", encoding="utf-8") as handle:
+        state = mm.XmlSerializer.deserialize(handle.read())
+    system = create_system(definition, topology, forcefield)
+    return ShippedState(meta["key"], topology, system, state, path)
+
+
+_PACKAGE_DIR = os.path.dirname(os.path.dirname(os.path.abspath(__file__))) + os.sep
+
+
+def _stacklevel_outside_package() -> int:
+    """Return the ``stacklevel`` (1: the caller of this function) of the first frame outside the package."""
+    frame, level = sys._getframe(1), 1
+    while frame.f_back is not None and os.path.abspath(frame.f_code.co_filename).startswith(_PACKAGE_DIR):
+        frame, level = frame.f_back, level + 1
+    return level
+
+
+def write_shipped_state(prepared: PreparedSystem, directory: Path | None = None) -> Path:
+    """Write ``prepared``'s start state as ``NAME.xml.gz`` and its record ``NAME.json`` in ``directory``.
+
+    ``directory`` defaults to :data:`STATES_DIR`. The gzip header carries no time
+    stamp, so the same state gives the same bytes. Returns the path of the
+    ``.xml.gz`` file.
+    """
+    directory = STATES_DIR if directory is None else Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    name = prepared.definition.name
+    path = directory / f"{name}.xml.gz"
+    xml = mm.XmlSerializer.serialize(prepared.state).encode("utf-8")
+    with tempfile.NamedTemporaryFile(dir=directory, delete=False) as raw:
+        with gzip.GzipFile(filename="", mode="wb", fileobj=raw, compresslevel=9, mtime=0) as handle:
+            handle.write(xml)
+    Path(raw.name).chmod(0o644)  # NamedTemporaryFile makes it private; package data is world-readable
+    Path(raw.name).replace(path)
+    meta = {
+        "name": name,
+        "key": shipped_key(prepared.definition),
+        "definition": prepared.definition.as_dict(),
+        "builder_version": BUILDER_VERSION,
+        "openmm_version": mm.__version__,
+        "n_atoms": prepared.n_atoms,
+        "topology_sha256": topology_fingerprint(prepared.topology),
+    }
+    (directory / f"{name}.json").write_text(json.dumps(meta, indent=2) + "\n", encoding="utf-8")
+    return path
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Build the named systems and write their shipped states (``python -m`` this module)."""
+    from .cache import prepare_system
+
+    parser = argparse.ArgumentParser(
+        prog="python -m openmm_alphaprk.systems.shipped",
+        description="Build systems from their definitions (minimize, equilibrate) and write their start "
+        "states as the package's shipped states.",
+    )
+    parser.add_argument("systems", nargs="+", help="system names or .toml paths")
+    parser.add_argument("--output", type=Path, default=None, help=f"folder (default {STATES_DIR})")
+    parser.add_argument("--cache-dir", default=None, help="cache the builds there too (default: not cached)")
+    args = parser.parse_args(argv)
+    for name in args.systems:
+        definition = load_definition(name)
+        prepared = prepare_system(
+            definition,
+            cache_dir=args.cache_dir,
+            use_cache=args.cache_dir is not None,
+            rebuild=True,
+            progress=True,
+        )
+        path = write_shipped_state(prepared, args.output)
+        print(f"{definition.name}: {prepared.n_atoms} atoms -> {path} ({path.stat().st_size} bytes)")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
