@@ -241,7 +241,12 @@ def test_controller_reporter_writes_every_step_as_it_goes(water_box, tmp_path):
         <= summary.alpha_percentiles["p50"]
         <= summary.alpha_percentiles["p99"]
     )
-    assert reporter.summary().as_dict() == summary.as_dict()
+    # every step reported: the rows and the integrator's every-step totals agree
+    from_totals = summarize_controller(rows, totals=integrator.controller_totals())
+    assert reporter.summary().as_dict() == from_totals.as_dict()
+    assert from_totals.residuals_over == "every step"
+    for key in ("rms_residual", "max_abs_residual", "fraction_fallen_back", "force_evaluations_per_step"):
+        assert getattr(from_totals, key) == pytest.approx(getattr(summary, key), rel=1e-9), key
 
     # a resumed run appends rows under the same header
     again = AlphaControllerReporter(str(path), append=True)
