@@ -420,7 +420,7 @@ def test_energy_mode_summary_uses_the_integrators_totals_over_every_step(cluster
 
 
 def test_a_finished_run_with_an_older_summary_is_summarized_again(cluster, tmp_path):
-    """A summary.json without the newer fields (the drift's standard error) is rewritten, not returned as is."""
+    """A summary.json without the newer fields (the drift's standard error) is rewritten, not returned."""
     first = run_nve(cluster, "energy", tmp_path, steps=20, **REFERENCE_RUN)
     path = tmp_path / rundir.SUMMARY_FILE
     old = json.loads(path.read_text(encoding="utf-8"))

@@ -109,10 +109,8 @@ def _parser() -> argparse.ArgumentParser:
         type=float,
         default=list(FIXED_ALPHA_SCAN),
         metavar="ALPHA",
-        help="also run alpha-RATTLE-4 with these fixed alphas (alpha4=0 runs anyway); the energy modes are "
-        "compared with the best of them (default: "
-        + " ".join(f"{a:g}" for a in FIXED_ALPHA_SCAN)
-        + "; give the option with no value to skip the scan)",
+        help=f"also run alpha-RATTLE-4 at these fixed alphas (default {' '.join(map(str, FIXED_ALPHA_SCAN))};"
+        " none: no scan); the energy modes are compared with alpha4=0 and the best of them",
     )
     parser.add_argument(
         "--equilibration-steps", type=int, default=1000, help="2 fs Langevin steps first (default 1000)"

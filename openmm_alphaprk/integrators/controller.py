@@ -149,8 +149,7 @@ class EnergyControllerProgram(MidpointProgram):
             "max_abs_residual",
         ):
             self.addGlobalVariable(name, 0)
-        # 0 once the user chose midpoint_tolerance; else set for the system at the first step
-        self.addGlobalVariable("midpoint_tolerance_automatic", 1)
+        self.addGlobalVariable("midpoint_tolerance_automatic", 1)  # 0: the user chose it
         for name in ("xend", "vend", "fmid_last") + (("xa", "va", "fa", "fstart_last") if order == 4 else ()):
             self.addPerDofVariable(name, 0)
 
