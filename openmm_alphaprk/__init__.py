@@ -8,7 +8,13 @@ from .integrators import (
     TimestepUnitWarning,
     restore_integrator,
 )
-from .smooth_forces import NonSmoothForcesWarning, make_smooth, smoothness_problems
+from .smooth_forces import (
+    NonSmoothForcesWarning,
+    StateChangingForceWarning,
+    make_smooth,
+    smoothness_problems,
+    state_changing_forces,
+)
 from .start_blowup import StartBlowUpError
 
 __all__ = [
@@ -18,9 +24,11 @@ __all__ = [
     "NonSmoothForcesWarning",
     "RattleIntegrator",
     "StartBlowUpError",
+    "StateChangingForceWarning",
     "TimestepUnitWarning",
     "make_smooth",
     "restore_integrator",
     "smoothness_problems",
+    "state_changing_forces",
 ]
 __version__ = "0.1.0"

@@ -1,4 +1,4 @@
-"""Smooth forces, the energy mode's precondition: checked, reported and fixed.
+"""Smooth forces and an NVE System, the energy mode's preconditions: checked, reported and fixed.
 
 The energy mode chooses α every step so that the total energy returns to E_ref. It can
 only do so if the energy is a smooth function of the positions. With OpenMM's default
@@ -8,9 +8,14 @@ water box those jumps made up RATTLE's whole energy error, which did not shrink 
 and the energy mode cannot remove them (docs/energy_mode.md, "Smooth forces are a
 precondition"; docs/smooth_forces.md).
 
-:func:`smoothness_problems` lists what is wrong with a System, :func:`make_smooth`
-fixes the nonbonded settings in place, and :func:`warn_if_not_smooth` is what the
-energy-mode integrators call at their first step.
+:func:`smoothness_problems` lists what is not smooth in a System, :func:`make_smooth`
+fixes the nonbonded settings in place, and :func:`warn_if_not_smooth` issues a
+:class:`NonSmoothForcesWarning` for them. :func:`state_changing_forces` lists the forces
+that change the state between steps (barostats, the Andersen thermostat, the
+CMMotionRemover), which RATTLE and fixed α apply like ``openmm.VerletIntegrator`` but
+the energy mode does not; :func:`warn_if_state_changing` issues a
+:class:`StateChangingForceWarning` for them. The energy-mode integrators issue both at
+their first step.
 """
 
 from __future__ import annotations
@@ -28,9 +33,12 @@ __all__ = [
     "DEFAULT_SWITCH_WIDTH",
     "SMOOTH_EWALD_TOLERANCE",
     "NonSmoothForcesWarning",
+    "StateChangingForceWarning",
     "make_smooth",
     "smoothness_problems",
+    "state_changing_forces",
     "warn_if_not_smooth",
+    "warn_if_state_changing",
 ]
 
 #: Width of the Lennard-Jones switching region make_smooth sets up (nm).
@@ -50,11 +58,12 @@ _BAROSTATS = tuple(
     )
     if hasattr(mm, name)
 )
-#: Applied by OpenMM only in an integrator's "update context state" step, which the
-#: step programs of this package do not have.
+#: Why the energy mode leaves these forces alone (RATTLE and fixed α apply them).
 _NOT_APPLIED = (
-    "this package's integrators never apply it (OpenMM applies barostats, thermostats and the "
-    "CMMotionRemover in an integrator's update-context-state step, which their step programs do not have)"
+    "the energy mode does not apply it (OpenMM applies barostats, thermostats and the CMMotionRemover in "
+    "an integrator's update-context-state step, which RattleIntegrator and fixed alpha have, like "
+    "VerletIntegrator, and the energy mode has not: it holds the energy of its reference state, which "
+    "these forces change by design)"
 )
 _FIX_NONBONDED = "call openmm_alphaprk.make_smooth(system) before creating the Context"
 _SMALL = 1e-12  # nm: switching distances this close count as equal (round-off of cutoff − width)
@@ -62,6 +71,14 @@ _SMALL = 1e-12  # nm: switching distances this close count as equal (round-off o
 
 class NonSmoothForcesWarning(UserWarning):
     """An energy-mode integrator was given a System whose energy is not smooth (see smoothness_problems)."""
+
+
+class StateChangingForceWarning(UserWarning):
+    """An energy-mode integrator was given a System with a barostat, Andersen thermostat or CMMotionRemover.
+
+    The energy mode does not apply them (see :func:`state_changing_forces`); RATTLE and
+    fixed α do.
+    """
 
 
 def _label(index: int, force: mm.Force) -> str:
@@ -83,7 +100,7 @@ def _nm(quantity: unit.Quantity | float) -> float:
 
 
 def smoothness_problems(system: mm.System) -> list[str]:
-    """List what keeps ``system`` from being run by the energy mode as intended.
+    """List what keeps the energy of ``system`` from being a smooth function of the positions.
 
     Parameters
     ----------
@@ -96,9 +113,8 @@ def smoothness_problems(system: mm.System) -> list[str]:
         One message per problem, each naming the force, the setting and the fix;
         empty if there is none. Reported: a ``NonbondedForce`` or
         ``CustomNonbondedForce`` with a cutoff and no switching function; an
-        Ewald/PME/LJPME error tolerance above 1e-5; a ``CMMotionRemover``, Monte
-        Carlo barostat or ``AndersenThermostat`` (which this package's step programs
-        never apply, so the System promises what the run does not do).
+        Ewald/PME/LJPME error tolerance above 1e-5. Forces that change the state
+        between steps are listed by :func:`state_changing_forces` instead.
 
     """
     problems = []
@@ -121,33 +137,56 @@ def smoothness_problems(system: mm.System) -> list[str]:
                     "its reciprocal-space error adds noise to every energy the energy mode aims at. Fix: "
                     f"{_FIX_NONBONDED}, or setEwaldErrorTolerance({SMOOTH_EWALD_TOLERANCE:g})."
                 )
-        problems.extend(_state_changer_problem(label, force))
     return problems
 
 
-def _state_changer_problem(label: str, force: mm.Force) -> list[str]:
-    """Return the message for a CMMotionRemover, barostat or Andersen thermostat (else nothing)."""
-    if isinstance(force, mm.CMMotionRemover):
-        return [
-            f"{label}: {_NOT_APPLIED}, so it removes nothing (centre-of-mass momentum is conserved, as "
-            "in any NVE run) while OpenMM's temperature (StateDataReporter) counts 3 degrees of freedom "
-            "fewer for it. Where it is applied it changes velocities between steps, which the energy "
-            "mode would read as a state change and re-take its reference energy. Fix: "
-            "createSystem(..., removeCMMotion=False), or remove the force."
-        ]
-    if isinstance(force, _BAROSTATS):
-        return [
-            f"{label}: {_NOT_APPLIED}, so the box volume stays fixed and the run is NVE, not the "
-            "constant-pressure run the System asks for. The energy-preserving mode is an NVE method: "
-            "remove the barostat (equilibrate the density with another integrator first)."
-        ]
-    if isinstance(force, mm.AndersenThermostat):
-        return [
-            f"{label}: {_NOT_APPLIED}, so no temperature is imposed and the run is NVE. The "
-            "energy-preserving mode is an NVE method and needs no thermostat: remove it (equilibrate "
-            "with a Langevin integrator first)."
-        ]
-    return []
+def state_changing_forces(system: mm.System) -> list[str]:
+    """List the forces of ``system`` that change its state between steps: the energy mode does not apply them.
+
+    OpenMM applies a Monte Carlo barostat, an ``AndersenThermostat`` and a
+    ``CMMotionRemover`` in an integrator's update-context-state step.
+    ``RattleIntegrator`` and ``AlphaRattleIntegrator`` with a fixed α have that step
+    at the start of each step, as ``openmm.VerletIntegrator`` does; the energy mode
+    has not. It holds the total energy of its reference state E_ref, which a barostat
+    or thermostat changes by design: were they applied, every change would have to
+    be told apart from the common platform's reordering of atoms and E_ref taken
+    again, and a change too small to tell (below max(tolerance, 1e-6 |E|)) would leave
+    E_ref wrong. So the energy mode runs such a System NVE.
+
+    Parameters
+    ----------
+    system
+        The System to check (not changed).
+
+    Returns
+    -------
+    list of str
+        One message per force, naming it, what the energy mode does with it and the
+        fix; empty if there is none.
+
+    """
+    messages = []
+    for index, force in enumerate(system.getForces()):
+        label = _label(index, force)
+        if isinstance(force, mm.CMMotionRemover):
+            messages.append(
+                f"{label}: {_NOT_APPLIED}. It would remove nothing (the energy mode conserves "
+                "centre-of-mass momentum, as any NVE method does), but OpenMM's temperature "
+                "(StateDataReporter) counts 3 degrees of freedom fewer for it. Fix: "
+                "createSystem(..., removeCMMotion=False), or remove the force."
+            )
+        elif isinstance(force, _BAROSTATS):
+            messages.append(
+                f"{label}: {_NOT_APPLIED}. The box volume stays fixed and the run is NVE, not the "
+                "constant-pressure run the System asks for. Fix: remove the barostat and equilibrate "
+                "the density first (with it, RattleIntegrator or a fixed alpha apply it)."
+            )
+        elif isinstance(force, mm.AndersenThermostat):
+            messages.append(
+                f"{label}: {_NOT_APPLIED}. No temperature is imposed and the run is NVE. Fix: remove "
+                "it and equilibrate first (with it, RattleIntegrator or a fixed alpha apply it)."
+            )
+    return messages
 
 
 def make_smooth(
@@ -262,7 +301,7 @@ def apply_build_settings(
 
 
 def warn_if_not_smooth(system: mm.System, stacklevel: int | None = None) -> bool:
-    """Issue one :class:`NonSmoothForcesWarning` listing all of ``system``'s problems, if any.
+    """Issue one :class:`NonSmoothForcesWarning` listing every :func:`smoothness_problems` entry, if any.
 
     Parameters
     ----------
@@ -286,9 +325,39 @@ def warn_if_not_smooth(system: mm.System, stacklevel: int | None = None) -> bool
     level = _outside_stacklevel() if stacklevel is None else int(stacklevel)
     listed = "\n".join(f"  - {problem}" for problem in problems)
     warnings.warn(
-        f"the energy-preserving mode needs smooth forces and an NVE System; {len(problems)} problem(s) "
-        f"found:\n{listed}\nSee docs/smooth_forces.md of openmm_alphaprk.",
+        f"the energy-preserving mode needs smooth forces; {len(problems)} problem(s) found:\n{listed}\n"
+        "See docs/smooth_forces.md of openmm_alphaprk.",
         NonSmoothForcesWarning,
+        stacklevel=level + 1,
+    )
+    return True
+
+
+def warn_if_state_changing(system: mm.System, stacklevel: int | None = None) -> bool:
+    """Issue one :class:`StateChangingForceWarning` listing every :func:`state_changing_forces` entry, if any.
+
+    Parameters
+    ----------
+    system
+        The System an energy-mode integrator is about to run.
+    stacklevel
+        As for :func:`warn_if_not_smooth`.
+
+    Returns
+    -------
+    bool
+        True if a warning was issued.
+
+    """
+    forces = state_changing_forces(system)
+    if not forces:
+        return False
+    level = _outside_stacklevel() if stacklevel is None else int(stacklevel)
+    listed = "\n".join(f"  - {force}" for force in forces)
+    warnings.warn(
+        f"the energy-preserving mode runs NVE; {len(forces)} force(s) of this System change the state "
+        f"between steps and are not applied:\n{listed}\nSee docs/smooth_forces.md of openmm_alphaprk.",
+        StateChangingForceWarning,
         stacklevel=level + 1,
     )
     return True

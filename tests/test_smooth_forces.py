@@ -1,4 +1,5 @@
-"""Smooth forces (make_smooth, smoothness_problems, the energy mode's warning) and StartBlowUpError."""
+"""Smooth forces (make_smooth, smoothness_problems, state_changing_forces), the energy mode's warnings,
+and StartBlowUpError."""
 
 from __future__ import annotations
 
@@ -17,8 +18,10 @@ from openmm_alphaprk import (
     NonSmoothForcesWarning,
     RattleIntegrator,
     StartBlowUpError,
+    StateChangingForceWarning,
     make_smooth,
     smoothness_problems,
+    state_changing_forces,
 )
 from openmm_alphaprk import start_blowup as start_blowup_module
 
@@ -119,11 +122,14 @@ def test_no_warning_after_make_smooth(water):
 def test_fixed_alpha_and_rattle_do_not_warn(water, make):
     forcefield, topology, positions = water
     integrator = make()
-    context = _context(_create(forcefield, topology), integrator, positions)
+    system = _create(forcefield, topology)
+    system.addForce(mm.CMMotionRemover())
+    context = _context(system, integrator, positions)
     with warnings.catch_warnings(record=True) as record:
         warnings.simplefilter("always")
         integrator.step(2)
-    assert not _ours(record)
+    warned = (NonSmoothForcesWarning, StateChangingForceWarning)
+    assert not [w for w in record if issubclass(w.category, warned)]
     del context
 
 
@@ -171,8 +177,27 @@ def _custom(switch=None):
 @pytest.mark.parametrize(
     ("force", "words"),
     [
-        (lambda: mm.CMMotionRemover(), ["CMMotionRemover", "removeCMMotion=False", "reference energy"]),
-        (lambda: mm.MonteCarloBarostat(1.0, 300.0), ["MonteCarloBarostat", "remove the barostat"]),
+        (lambda: _nonbonded(ewald=5e-4), ["Ewald error tolerance of 0.0005", "make_smooth(system)"]),
+        (lambda: _nonbonded(method=mm.NonbondedForce.LJPME, ewald=1e-4), ["tolerance of 0.0001"]),
+        (lambda: _nonbonded(switch=None), ["NonbondedForce", "without a switching function", "make_smooth"]),
+        (lambda: _custom(), ["CustomNonbondedForce", "without a switching function", "make_smooth"]),
+    ],
+    ids=["loose-pme", "loose-ljpme", "unswitched", "unswitched-custom"],
+)
+def test_each_problem_is_reported_with_its_fix(force, words):
+    system = _small_system(_nonbonded(), force())
+    (problem,) = smoothness_problems(system)
+    for word in words:
+        assert word in problem
+    assert "(force 1)" in problem
+    assert state_changing_forces(system) == []
+
+
+@pytest.mark.parametrize(
+    ("force", "words"),
+    [
+        (lambda: mm.CMMotionRemover(), ["CMMotionRemover", "removeCMMotion=False", "3 degrees of freedom"]),
+        (lambda: mm.MonteCarloBarostat(1.0, 300.0), ["MonteCarloBarostat", "remove the barostat", "NVE"]),
         (
             lambda: mm.MonteCarloAnisotropicBarostat(mm.Vec3(1, 1, 1), 300.0),
             ["MonteCarloAnisotropicBarostat", "NVE"],
@@ -188,31 +213,17 @@ def _custom(switch=None):
             ["MonteCarloMembraneBarostat", "NVE"],
         ),
         (lambda: mm.MonteCarloFlexibleBarostat(1.0, 300.0), ["MonteCarloFlexibleBarostat", "NVE"]),
-        (lambda: mm.AndersenThermostat(300.0, 1.0), ["AndersenThermostat", "needs no thermostat"]),
-        (lambda: _nonbonded(ewald=5e-4), ["Ewald error tolerance of 0.0005", "make_smooth(system)"]),
-        (lambda: _nonbonded(method=mm.NonbondedForce.LJPME, ewald=1e-4), ["tolerance of 0.0001"]),
-        (lambda: _nonbonded(switch=None), ["NonbondedForce", "without a switching function", "make_smooth"]),
-        (lambda: _custom(), ["CustomNonbondedForce", "without a switching function", "make_smooth"]),
+        (lambda: mm.AndersenThermostat(300.0, 1.0), ["AndersenThermostat", "No temperature is imposed"]),
     ],
-    ids=[
-        "cmmotion",
-        "barostat",
-        "anisotropic",
-        "membrane",
-        "flexible",
-        "andersen",
-        "loose-pme",
-        "loose-ljpme",
-        "unswitched",
-        "unswitched-custom",
-    ],
+    ids=["cmmotion", "barostat", "anisotropic", "membrane", "flexible", "andersen"],
 )
-def test_each_problem_is_reported_with_its_fix(force, words):
+def test_each_state_changing_force_is_reported_apart_from_smoothness(force, words):
     system = _small_system(_nonbonded(), force())
-    (problem,) = smoothness_problems(system)
-    for word in words:
-        assert word in problem
-    assert "(force 1)" in problem
+    (message,) = state_changing_forces(system)
+    for word in [*words, "the energy mode does not apply it", "RattleIntegrator"]:
+        assert word in message
+    assert "(force 1)" in message
+    assert smoothness_problems(system) == []
 
 
 def test_a_smooth_system_and_forces_without_cutoff_have_no_problems():
@@ -224,9 +235,21 @@ def test_warn_if_not_smooth_issues_one_warning_listing_every_problem():
     system = _small_system(_nonbonded(switch=None, ewald=5e-4), mm.CMMotionRemover())
     with pytest.warns(NonSmoothForcesWarning) as record:
         assert openmm_alphaprk.smooth_forces.warn_if_not_smooth(system, stacklevel=1)
-    assert len(record) == 1 and str(record[0].message).count("\n  - ") == 3
+    assert len(record) == 1 and str(record[0].message).count("\n  - ") == 2
+    assert "CMMotionRemover" not in str(record[0].message)
     assert record[0].filename == __file__
     assert not openmm_alphaprk.smooth_forces.warn_if_not_smooth(_small_system(_nonbonded()))
+
+
+def test_warn_if_state_changing_issues_one_warning_of_its_own_class():
+    system = _small_system(_nonbonded(switch=None), mm.CMMotionRemover(), mm.AndersenThermostat(300.0, 1.0))
+    with pytest.warns(StateChangingForceWarning) as record:
+        assert openmm_alphaprk.smooth_forces.warn_if_state_changing(system, stacklevel=1)
+    (warning,) = record
+    assert not issubclass(warning.category, NonSmoothForcesWarning)
+    assert str(warning.message).count("\n  - ") == 2 and "switching" not in str(warning.message)
+    assert warning.filename == __file__
+    assert not openmm_alphaprk.smooth_forces.warn_if_state_changing(_small_system(_nonbonded(switch=None)))
 
 
 # ------------------------------------------------------------------ make_smooth
@@ -358,7 +381,7 @@ def test_the_blow_up_scenarios_are_real_without_the_check(cluster, water, monkey
     monkeypatch.setattr(
         start_blowup_module,
         "take_steps",
-        lambda integrator, steps: mm.CustomIntegrator.step(integrator, steps),
+        lambda integrator, steps, *velocities: mm.CustomIntegrator.step(integrator, steps),
     )
     system, positions = cluster
     integrator = RattleIntegrator(0.002)

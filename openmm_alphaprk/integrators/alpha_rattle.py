@@ -17,7 +17,7 @@ import openmm.unit as unit
 from .. import platforms
 from .._units import to_dimensionless, to_float
 from ..observables import positive_int
-from ..smooth_forces import warn_if_not_smooth
+from ..smooth_forces import warn_if_not_smooth, warn_if_state_changing
 from .base import MasslessParticleError
 from .controller import ControllerSettings
 from .energy_mode import (
@@ -109,6 +109,12 @@ class AlphaRattleIntegrator(EnergyModeProgram):
     -----
     Where the force is constant, every member of the family is the same map as
     RATTLE: α acts only through how the force varies along the step.
+
+    With a fixed α each step starts with OpenMM's update-context-state step, as a
+    ``VerletIntegrator`` step does: a Monte Carlo barostat, an ``AndersenThermostat``
+    or a ``CMMotionRemover`` acts as it does there. The energy mode leaves them out
+    and runs NVE (:func:`openmm_alphaprk.smooth_forces.state_changing_forces` says why),
+    and warns about them at its first step.
     """
 
     _kind = 2
@@ -173,12 +179,16 @@ class AlphaRattleIntegrator(EnergyModeProgram):
     def _build_program(self) -> None:
         """Order 2, fixed α: RATTLE at α = 0, else a loop of solves and midpoint forces.
 
+        The update-context-state step comes first, before the start is saved, as in a
+        ``VerletIntegrator`` step.
+
         At α = 0 the step is the RATTLE block, the same computations as
         :class:`~.rattle.RattleIntegrator`; its kernels read no global variable, so on CUDA,
         OpenCL and HIP the step needs no upload of globals to the device (each is a
         synchronisation with the host). The α ≠ 0 block follows it in program text,
         so that its midpoint assignment comes after every constraint step.
         """
+        self.addUpdateContextState()
         self._add_save_step_start(fstart="f", fmid="f")
         self._add_midpoint_setup("1")
         self.beginIfBlock("alpha = 0")
@@ -202,11 +212,14 @@ class AlphaRattleIntegrator(EnergyModeProgram):
     def _build_order4_program(self) -> None:
         """α-RATTLE-4 with fixed α: RATTLE (γ1 h), then a loop over α-RATTLE (γ2 h) and RATTLE (γ1 h).
 
+        The update-context-state step comes first, before the start is saved.
+
         The last sub-step is inside the loop, before its midpoint block, so that its
         position constraint precedes the midpoint assignment in program text. A
         failed midpoint iteration makes both remaining sub-steps return the state
         the step started from.
         """
+        self.addUpdateContextState()
         self._add_save_step_start(xstep="x", vstep="v", fstart="f")
         self._add_first_outer_substep()
         self._add_inner_substeps_start("1 - delta(alpha)", fmid="f")
@@ -256,7 +269,8 @@ class AlphaRattleIntegrator(EnergyModeProgram):
         self._set_degrees_of_freedom(3 * (system.getNumParticles() - self._massless_count))
         if self.energy_mode:
             self._set_automatic_energy_tolerance(system.getNumParticles(), platforms.force_precision(context))
-            warn_if_not_smooth(system)  # points at the user's step() call
+            warn_if_not_smooth(system)  # both point at the user's step() call
+            warn_if_state_changing(system)
 
     def _prepare_without_context(self) -> None:
         super()._prepare_without_context()

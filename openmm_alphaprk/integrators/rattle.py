@@ -17,6 +17,10 @@ class RattleIntegrator(StepProgram):
     every comparison. Velocities are at the full step, so ``State.getKineticEnergy()``
     is the kinetic energy of the current velocities. One force evaluation per step.
 
+    Each step starts with OpenMM's update-context-state step, as a
+    ``VerletIntegrator`` step does: a Monte Carlo barostat, an ``AndersenThermostat``
+    or a ``CMMotionRemover`` in the System acts as it does with ``VerletIntegrator``.
+
     Parameters
     ----------
     timestep
@@ -36,6 +40,8 @@ class RattleIntegrator(StepProgram):
         self._build_program()
 
     def _build_program(self) -> None:
+        """Add the update-context-state step, then a RATTLE step: solve with F(x0), update with F(x1)."""
+        self.addUpdateContextState()
         self._add_save_step_start()
         self._add_position_solve("0.5*f")
         self._add_velocity_update("0.5*f")
