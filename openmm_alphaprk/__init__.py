@@ -5,6 +5,7 @@ from .integrators import (
     MasslessParticleError,
     MidpointConvergenceError,
     RattleIntegrator,
+    SystemSizeError,
     TimestepUnitWarning,
     restore_integrator,
 )
@@ -25,6 +26,7 @@ __all__ = [
     "RattleIntegrator",
     "StartBlowUpError",
     "StateChangingForceWarning",
+    "SystemSizeError",
     "TimestepUnitWarning",
     "make_smooth",
     "restore_integrator",

@@ -14,8 +14,8 @@ fixes the nonbonded settings in place, and :func:`warn_if_not_smooth` issues a
 that change the state between steps (barostats, the Andersen thermostat, the
 CMMotionRemover), which RATTLE and fixed α apply like ``openmm.VerletIntegrator`` but
 the energy mode does not; :func:`warn_if_state_changing` issues a
-:class:`StateChangingForceWarning` for them. The energy-mode integrators issue both at
-their first step.
+:class:`StateChangingForceWarning` for them. The energy-mode integrators issue both
+from ``check_context``.
 """
 
 from __future__ import annotations

@@ -66,33 +66,61 @@ def _ours(record):
 
 # ------------------------------------------------------------------ the warning
 @pytest.mark.parametrize("order", [2, 4])
-def test_energy_mode_warns_once_at_the_first_step_pointing_at_the_users_call(water, order):
+def test_energy_mode_warns_at_check_context_pointing_at_the_users_call(water, order):
     forcefield, topology, positions = water
     integrator = AlphaRattleIntegrator(0.001, alpha="energy", order=order)
     context = _context(_create(forcefield, topology), integrator, positions)
     with pytest.warns(NonSmoothForcesWarning, match="without a switching function") as record:
-        integrator.step(1)
+        integrator.check_context(context)
     (warning,) = _ours(record)
     assert warning.filename == __file__  # the line above, not inside the package
     assert "Ewald error tolerance of 0.0005" in str(warning.message)
     assert "openmm_alphaprk.make_smooth(system)" in str(warning.message)
     with warnings.catch_warnings(record=True) as again:
         warnings.simplefilter("always")
-        integrator.step(1)
-    assert not _ours(again)  # once per integrator
+        integrator.step(2)
+    assert not _ours(again)  # the check is not repeated at every step
     del context
 
 
-def test_warning_from_simulation_step_points_at_the_users_line(water):
+def test_energy_mode_without_check_context_cannot_see_the_system_and_says_nothing(water):
+    """Without check_context the integrator cannot see its System: no warning, the noisiest tolerance."""
     forcefield, topology, positions = water
     integrator = AlphaRattleIntegrator(0.001, alpha="energy", order=4)
-    simulation = app.Simulation(
-        topology, _create(forcefield, topology), integrator, mm.Platform.getPlatformByName("CPU")
-    )
+    context = _context(_create(forcefield, topology), integrator, positions)
+    with warnings.catch_warnings(record=True) as record:
+        warnings.simplefilter("always")
+        integrator.step(1)
+    assert not _ours(record)
+    atoms = context.getSystem().getNumParticles()
+    single = openmm_alphaprk.platforms.default_energy_tolerance(atoms, "single")
+    assert integrator.energy_tolerance.value_in_unit(unit.kilojoules_per_mole) == pytest.approx(single)
+    with pytest.warns(NonSmoothForcesWarning):
+        integrator.check_context(context)
+    mixed = openmm_alphaprk.platforms.default_energy_tolerance(atoms, "mixed")  # the CPU platform
+    assert integrator.energy_tolerance.value_in_unit(unit.kilojoules_per_mole) == pytest.approx(mixed)
+    assert mixed < 0.8 * single
+
+
+def test_a_barostat_added_before_reinitialize_is_reported_at_the_next_step_at_the_users_line(water):
+    forcefield, topology, positions = water
+    system = _create(forcefield, topology)
+    make_smooth(system)
+    integrator = AlphaRattleIntegrator(0.001, alpha="energy", order=4)
+    simulation = app.Simulation(topology, system, integrator, mm.Platform.getPlatformByName("CPU"))
     simulation.context.setPositions(positions)
-    with pytest.warns(NonSmoothForcesWarning) as record:
+    with warnings.catch_warnings(record=True) as record:
+        warnings.simplefilter("always")
+        integrator.check_context(simulation.context)
         simulation.step(1)
-    (warning,) = _ours(record)
+    assert not [
+        w for w in record if issubclass(w.category, (NonSmoothForcesWarning, StateChangingForceWarning))
+    ]
+    system.addForce(mm.MonteCarloBarostat(1.0, 300.0))
+    simulation.context.reinitialize(preserveState=True)
+    with pytest.warns(StateChangingForceWarning, match="MonteCarloBarostat") as record:
+        simulation.step(1)
+    (warning,) = [w for w in record if issubclass(w.category, StateChangingForceWarning)]
     assert warning.filename == __file__  # not openmm/app/simulation.py
 
 
@@ -105,6 +133,7 @@ def test_no_warning_after_make_smooth(water):
     context = _context(system, integrator, positions)
     with warnings.catch_warnings(record=True) as record:
         warnings.simplefilter("always")
+        integrator.check_context(context)
         integrator.step(2)
     assert not _ours(record)
     del context
@@ -127,9 +156,11 @@ def test_fixed_alpha_and_rattle_do_not_warn(water, make):
     context = _context(system, integrator, positions)
     with warnings.catch_warnings(record=True) as record:
         warnings.simplefilter("always")
+        integrator.check_context(context)
         integrator.step(2)
-    warned = (NonSmoothForcesWarning, StateChangingForceWarning)
-    assert not [w for w in record if issubclass(w.category, warned)]
+    assert not [
+        w for w in record if issubclass(w.category, (NonSmoothForcesWarning, StateChangingForceWarning))
+    ]
     del context
 
 
