@@ -1,12 +1,15 @@
 """α-RATTLE as a drop-in integrator in an ordinary OpenMM script.
 
 Everything here is plain OpenMM (ForceField, Modeller, Simulation, StateDataReporter,
-DCDReporter, CheckpointReporter); only the integrator line differs from a
-VerletIntegrator script, and ``make_smooth(system)``, which switches Lennard-Jones off
-over the last 0.1 nm of the cutoff and tightens PME's error tolerance to 1e-5 so that
-the energy is smooth (docs/smooth_forces.md). NVE needs ``removeCMMotion=False`` (α-RATTLE
-never applies a CMMotionRemover, which would only make OpenMM count 3 degrees of freedom
-fewer in the temperature).
+DCDReporter, CheckpointReporter); only the integrator lines differ from a
+VerletIntegrator script: the integrator, and ``integrator.check_context(simulation.context)``,
+which shows it the platform (the energy mode's default tolerance follows its precision)
+and the System (the energy mode warns about forces that are not smooth, and about
+barostats, thermostats and a CMMotionRemover, which it does not apply). Plus
+``make_smooth(system)``, which switches Lennard-Jones off over the last 0.1 nm of the
+cutoff and tightens PME's error tolerance to 1e-5 so that the energy is smooth
+(docs/smooth_forces.md). The run is NVE: ``removeCMMotion=False`` (the energy mode would
+not apply a CMMotionRemover; a fixed alpha would, as VerletIntegrator does).
 
     python examples/simulation_dropin.py --steps 1000 --output dropin-run
 """
@@ -54,6 +57,7 @@ for change in make_smooth(system):  # smooth forces at the cutoff: the energy mo
 alpha = args.alpha if args.alpha == "energy" else float(args.alpha)
 integrator = AlphaRattleIntegrator(2 * unit.femtoseconds, alpha=alpha, order=args.order)  # the α-RATTLE line
 simulation = app.Simulation(modeller.topology, system, integrator, mm.Platform.getPlatformByName("CPU"))
+integrator.check_context(simulation.context)  # the platform's precision, and the System's warnings
 simulation.context.setPositions(modeller.positions)
 simulation.minimizeEnergy(maxIterations=200)
 simulation.context.setVelocitiesToTemperature(300 * unit.kelvin, 1)
