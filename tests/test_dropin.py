@@ -104,9 +104,10 @@ def test_a_barostat_moves_the_box_at_its_frequency_as_under_verlet(water_box, pl
 def test_every_fixed_alpha_program_makes_the_barostats_first_move_before_anything_else(water_box, platform):
     """The update-context-state step is the first computation: the same seed gives the same first move.
 
-    A CustomIntegrator reseeds OpenMM's host random numbers with its own seed, and
-    each of its global computations draws from them, so a later step in a program
-    would meet the barostat with another random number.
+    A CustomIntegrator reseeds OpenMM's host random numbers with its own seed, and its
+    computations draw from them (on Reference/CPU every global and per-DOF one), so an
+    update step placed later in one of the programs would meet the barostat with
+    other random numbers.
     """
     first = {name: _volumes(water_box, make(), platform, 1, 1) for name, make in FIXED.items()}
     start = first["rattle"][0]
@@ -155,15 +156,13 @@ def test_the_energy_mode_warns_about_each_force_it_does_not_apply(water_box, ord
 
 
 # ---------------------------------------------------------- the bound Context
-def _particles(masses, constrained=()):
-    """Particles on a line in a harmonic well, constraints between the given pairs."""
+def _particles(masses):
+    """Particles (amu) in a harmonic well."""
     system = mm.System()
     well = mm.CustomExternalForce("10*(x^2 + y^2 + z^2)")
     for i, mass in enumerate(masses):
         system.addParticle(mass)
         well.addParticle(i, [])
-    for i, j in constrained:
-        system.addConstraint(i, j, 0.1)
     system.addForce(well)
     return system
 
