@@ -1,12 +1,16 @@
 """α-RATTLE as a drop-in integrator in an ordinary OpenMM script.
 
 Everything here is plain OpenMM (ForceField, Modeller, Simulation, StateDataReporter,
-DCDReporter, CheckpointReporter); only the integrator line differs from a
-VerletIntegrator script, and ``prepare_for_nve(system)``, which readies the System
-that ``createSystem`` gives with its defaults for energy-conserving NVE: Lennard-Jones
-switched off over the last 0.1 nm of the cutoff and PME's error tolerance tightened,
-so that the energy is smooth, and the CMMotionRemover removed (α-RATTLE never applies
-it; it would only make OpenMM count 3 degrees of freedom fewer in the temperature).
+DCDReporter, CheckpointReporter); only the integrator lines differ from a
+VerletIntegrator script: the integrator, and ``integrator.check_context(simulation.context)``,
+which shows it the platform (the energy mode's default tolerance follows its precision)
+and the System (the energy mode warns about forces that are not smooth, and about
+barostats, thermostats and a CMMotionRemover, which it does not apply). Plus
+``prepare_for_nve(system)``, which readies the System that ``createSystem`` gives with its
+defaults for energy-conserving NVE: Lennard-Jones switched off over the last 0.1 nm of
+the cutoff and PME's error tolerance tightened, so that the energy is smooth, and the
+CMMotionRemover removed (the energy mode does not apply it; a fixed alpha would, as
+VerletIntegrator does).
 
     python examples/simulation_dropin.py --steps 1000 --output dropin-run
 """
@@ -49,6 +53,7 @@ for change in prepare_for_nve(system):  # smooth forces, no CMMotionRemover: wha
 alpha = args.alpha if args.alpha == "energy" else float(args.alpha)
 integrator = AlphaRattleIntegrator(2 * unit.femtoseconds, alpha=alpha, order=args.order)  # the α-RATTLE line
 simulation = app.Simulation(modeller.topology, system, integrator, mm.Platform.getPlatformByName("CPU"))
+integrator.check_context(simulation.context)  # the platform's precision, and the System's warnings
 simulation.context.setPositions(modeller.positions)
 simulation.minimizeEnergy(maxIterations=200)
 simulation.context.setVelocitiesToTemperature(300 * unit.kelvin, 1)

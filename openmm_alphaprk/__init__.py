@@ -5,10 +5,12 @@ from .integrators import (
     MasslessParticleError,
     MidpointConvergenceError,
     RattleIntegrator,
+    SystemSizeError,
     TimestepUnitWarning,
     restore_integrator,
 )
-from .smooth_forces import NonSmoothForcesWarning, make_smooth, prepare_for_nve, smoothness_problems
+from .nve import StateChangingForceWarning, prepare_for_nve, state_changing_forces
+from .smooth_forces import NonSmoothForcesWarning, make_smooth, smoothness_problems
 from .start_blowup import StartBlowUpError
 
 __all__ = [
@@ -18,11 +20,14 @@ __all__ = [
     "NonSmoothForcesWarning",
     "RattleIntegrator",
     "StartBlowUpError",
+    "StateChangingForceWarning",
+    "SystemSizeError",
     "TimestepUnitWarning",
     "make_smooth",
     "prepare_for_nve",
     "restore_integrator",
     "smoothness_problems",
+    "state_changing_forces",
 ]
 #: The package's version; pyproject.toml reads it from here (``[tool.setuptools.dynamic]``).
 __version__ = "0.1.0"

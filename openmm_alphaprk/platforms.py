@@ -15,12 +15,11 @@ OpenMM runs a ``CustomIntegrator`` step program with two different semantics:
 The step programs in :mod:`openmm_alphaprk.integrators` are written to give the same
 step under both. What still depends on the platform — whether forces at constrained
 positions see correct virtual sites, and how noisy the ``energy`` the energy mode
-targets is — is decided here, from the context the integrator is bound to.
+targets is — is decided here, from a Context given to the integrators'
+``check_context`` (OpenMM gives an integrator no access to its Context).
 """
 
 from __future__ import annotations
-
-import gc
 
 import openmm as mm
 import openmm.unit as unit
@@ -43,23 +42,9 @@ _NOISE_EXPONENT = 0.75
 TOLERANCE_IN_NOISE_UNITS = 3.0
 #: Smallest default energy tolerance (kJ/mol).
 _TOLERANCE_FLOOR = 1e-5
-
-
-def find_context(integrator: mm.Integrator) -> mm.Context | None:
-    """Return the :class:`openmm.Context` an integrator is bound to, or None.
-
-    OpenMM gives an integrator no handle on its context, but the Python ``Context``
-    keeps a reference to its integrator (what ``Context.getIntegrator()`` returns);
-    the context is found through that reference. Called once per integrator.
-    """
-    for referrer in gc.get_referrers(integrator):
-        if isinstance(referrer, mm.Context) and referrer.__dict__.get("_integrator") is integrator:
-            return referrer
-        if isinstance(referrer, dict) and referrer.get("_integrator") is integrator:
-            for owner in gc.get_referrers(referrer):
-                if isinstance(owner, mm.Context):
-                    return owner
-    return None
+#: The precision assumed when the platform is not known: the noisiest, so that a
+#: default energy tolerance is never inside the noise.
+UNKNOWN_PRECISION = "single"
 
 
 def massless_particles(system: mm.System) -> list[int]:

@@ -1,18 +1,17 @@
-"""Smooth forces, the energy mode's precondition: checked, reported and fixed.
+"""Smooth forces and an NVE System, the energy mode's preconditions: checked, reported and fixed.
 
 The energy mode chooses α every step so that the total energy returns to E_ref. It can
 only do so if the energy is a smooth function of the positions. With OpenMM's default
 cutoff settings it is not: the Lennard-Jones energy jumps when a pair crosses the
 cutoff, and PME's default error tolerance (5e-4) adds noise of the same size. On a
 water box those jumps made up RATTLE's whole energy error, which did not shrink with h,
-and the energy mode cannot remove them (docs/energy_mode.md, "Smooth forces are a
-precondition"; docs/smooth_forces.md).
+and the energy mode cannot remove them.
 
-:func:`smoothness_problems` lists what is wrong with a System, :func:`make_smooth`
-fixes the nonbonded settings in place, :func:`prepare_for_nve` does that and removes the
-forces the integrators never apply (one call for a System from ``createSystem``'s
-defaults), and :func:`warn_if_not_smooth` is what the energy-mode integrators call at
-their first step.
+:func:`smoothness_problems` lists what is not smooth in a System, :func:`make_smooth`
+fixes the nonbonded settings in place, and :func:`warn_if_not_smooth` issues a
+:class:`NonSmoothForcesWarning` for them (from the energy mode's ``check_context``).
+The forces that change the state between steps, and :func:`~openmm_alphaprk.nve.prepare_for_nve`,
+are in :mod:`openmm_alphaprk.nve`.
 """
 
 from __future__ import annotations
@@ -31,7 +30,6 @@ __all__ = [
     "SMOOTH_EWALD_TOLERANCE",
     "NonSmoothForcesWarning",
     "make_smooth",
-    "prepare_for_nve",
     "smoothness_problems",
     "warn_if_not_smooth",
 ]
@@ -42,23 +40,6 @@ DEFAULT_SWITCH_WIDTH = 0.1
 SMOOTH_EWALD_TOLERANCE = 1e-5
 
 _EWALD_METHODS = (mm.NonbondedForce.Ewald, mm.NonbondedForce.PME, mm.NonbondedForce.LJPME)
-_BAROSTATS = tuple(
-    getattr(mm, name)
-    for name in (
-        "MonteCarloBarostat",
-        "MonteCarloAnisotropicBarostat",
-        "MonteCarloMembraneBarostat",
-        "MonteCarloFlexibleBarostat",
-        "RPMDMonteCarloBarostat",
-    )
-    if hasattr(mm, name)
-)
-#: Applied by OpenMM only in an integrator's "update context state" step, which the
-#: step programs of this package do not have.
-_NOT_APPLIED = (
-    "this package's integrators never apply it (OpenMM applies barostats, thermostats and the "
-    "CMMotionRemover in an integrator's update-context-state step, which their step programs do not have)"
-)
 _FIX_NONBONDED = "call openmm_alphaprk.make_smooth(system) before creating the Context"
 _SMALL = 1e-12  # nm: switching distances this close count as equal (round-off of cutoff − width)
 
@@ -67,7 +48,7 @@ class NonSmoothForcesWarning(UserWarning):
     """An energy-mode integrator was given a System whose energy is not smooth (see smoothness_problems)."""
 
 
-def _label(index: int, force: mm.Force) -> str:
+def label_force(index: int, force: mm.Force) -> str:
     """``NonbondedForce (force 3)``, with the force's name if it is not its class name."""
     kind, name = type(force).__name__, force.getName()
     return f"{kind} (force {index})" if name == kind else f"{kind} {name!r} (force {index})"
@@ -86,7 +67,7 @@ def _nm(quantity: unit.Quantity | float) -> float:
 
 
 def smoothness_problems(system: mm.System) -> list[str]:
-    """List what keeps ``system`` from being run by the energy mode as intended.
+    """List what keeps the energy of ``system`` from being a smooth function of the positions.
 
     Parameters
     ----------
@@ -99,14 +80,13 @@ def smoothness_problems(system: mm.System) -> list[str]:
         One message per problem, each naming the force, the setting and the fix;
         empty if there is none. Reported: a ``NonbondedForce`` or
         ``CustomNonbondedForce`` with a cutoff and no switching function; an
-        Ewald/PME/LJPME error tolerance above 1e-5; a ``CMMotionRemover``, Monte
-        Carlo barostat or ``AndersenThermostat`` (which this package's step programs
-        never apply, so the System promises what the run does not do).
+        Ewald/PME/LJPME error tolerance above 1e-5. Forces that change the state
+        between steps are listed by :func:`state_changing_forces` instead.
 
     """
     problems = []
     for index, force in enumerate(system.getForces()):
-        label = _label(index, force)
+        label = label_force(index, force)
         if _has_cutoff(force) and not force.getUseSwitchingFunction():
             cutoff = _nm(force.getCutoffDistance())
             problems.append(
@@ -124,33 +104,7 @@ def smoothness_problems(system: mm.System) -> list[str]:
                     "its reciprocal-space error adds noise to every energy the energy mode aims at. Fix: "
                     f"{_FIX_NONBONDED}, or setEwaldErrorTolerance({SMOOTH_EWALD_TOLERANCE:g})."
                 )
-        problems.extend(_state_changer_problem(label, force))
     return problems
-
-
-def _state_changer_problem(label: str, force: mm.Force) -> list[str]:
-    """Return the message for a CMMotionRemover, barostat or Andersen thermostat (else nothing)."""
-    if isinstance(force, mm.CMMotionRemover):
-        return [
-            f"{label}: {_NOT_APPLIED}, so it removes nothing (centre-of-mass momentum is conserved, as "
-            "in any NVE run) while OpenMM's temperature (StateDataReporter) counts 3 degrees of freedom "
-            "fewer for it. Where it is applied it changes velocities between steps, which the energy "
-            "mode would read as a state change and re-take its reference energy. Fix: "
-            "createSystem(..., removeCMMotion=False), or remove the force."
-        ]
-    if isinstance(force, _BAROSTATS):
-        return [
-            f"{label}: {_NOT_APPLIED}, so the box volume stays fixed and the run is NVE, not the "
-            "constant-pressure run the System asks for. The energy-preserving mode is an NVE method: "
-            "remove the barostat (equilibrate the density with another integrator first)."
-        ]
-    if isinstance(force, mm.AndersenThermostat):
-        return [
-            f"{label}: {_NOT_APPLIED}, so no temperature is imposed and the run is NVE. The "
-            "energy-preserving mode is an NVE method and needs no thermostat: remove it (equilibrate "
-            "with a Langevin integrator first)."
-        ]
-    return []
 
 
 def make_smooth(
@@ -209,76 +163,11 @@ def make_smooth(
     return changes
 
 
-def prepare_for_nve(
-    system: mm.System,
-    switch_width: unit.Quantity | float | None = DEFAULT_SWITCH_WIDTH * unit.nanometers,
-    ewald_error_tolerance: float | None = SMOOTH_EWALD_TOLERANCE,
-) -> list[str]:
-    """Make a System from ``ForceField.createSystem`` ready for energy-conserving NVE, in place.
-
-    Calls :func:`make_smooth` (Lennard-Jones switched over the last ``switch_width``,
-    Ewald/PME/LJPME error tolerance at most ``ewald_error_tolerance``), then removes
-    every ``CMMotionRemover``, Monte Carlo barostat and ``AndersenThermostat``: this
-    package's integrators never apply them, an NVE run needs none of them, and a
-    ``CMMotionRemover`` makes OpenMM's temperature count 3 degrees of freedom fewer.
-    With the default arguments, :func:`smoothness_problems` then finds nothing.
-
-    Parameters
-    ----------
-    system
-        The System to change (before creating a Context from it: an existing Context
-        does not see the change).
-    switch_width, ewald_error_tolerance
-        As for :func:`make_smooth`.
-
-    Returns
-    -------
-    list of str
-        One line per change, make_smooth's first; force indices are those of the
-        System as it was passed in.
-
-    Raises
-    ------
-    ValueError
-        As :func:`make_smooth`, before anything is changed.
-
-    Notes
-    -----
-    Ewald tolerance 1e-5 is the loosest measured that keeps the energy mode's gain: on
-    a 3 nm TIP3P box (CPU platform, 2 fs; two runs) α-RATTLE-4's energy mode held H to
-    1/90–1/100 of RATTLE's RMS error at 1e-5, 1/12–1/30 at 5e-5, 1/3–1/8 at 1e-4 and was
-    worse than RATTLE at 5e-4, while 1e-5 cost 1.3× a 5e-4 step (1.55× on solvated villin).
-    Where only fixed-α integrators are compared, 1e-4 gives RATTLE the same error.
-
-    """
-    changes = make_smooth(system, switch_width, ewald_error_tolerance)
-    return changes + _remove_unapplied_forces(system)
-
-
-def _remove_unapplied_forces(system: mm.System) -> list[str]:
-    """Remove the CMMotionRemovers, barostats and Andersen thermostats; one line each, in index order."""
-    reasons = (
-        (mm.CMMotionRemover, "an NVE run conserves the centre-of-mass momentum without it"),
-        (_BAROSTATS, "NVE keeps the box volume fixed"),
-        (mm.AndersenThermostat, "NVE imposes no temperature"),
-    )
-    removed = []
-    for index in reversed(range(system.getNumForces())):
-        force = system.getForce(index)
-        why = next((text for kinds, text in reasons if isinstance(force, kinds)), None)
-        if why is not None:
-            removed.append(
-                f"{_label(index, force)}: removed ({why}; this package's integrators never apply it)"
-            )
-            system.removeForce(index)
-    return removed[::-1]
-
-
 def _check_switch_width(index: int, force: mm.Force, width: float) -> None:
     cutoff = _nm(force.getCutoffDistance())
     if cutoff - width <= 0:
         raise ValueError(
-            f"{_label(index, force)}: cutoff {cutoff:g} nm minus switch_width {width:g} nm is "
+            f"{label_force(index, force)}: cutoff {cutoff:g} nm minus switch_width {width:g} nm is "
             f"{cutoff - width:g} nm, not a switching distance. Pass a switch_width below "
             f"{cutoff:g} nm (e.g. {0.1 * cutoff:g} nm), or a larger cutoff."
         )
@@ -294,7 +183,7 @@ def _switch(index: int, force: mm.Force, width: float) -> list[str]:
     old = f"switching from {distance:g} nm" if on else "no switching function"
     force.setUseSwitchingFunction(True)
     force.setSwitchingDistance(target)
-    return [f"{_label(index, force)}: {old} → switching from {target:g} nm (cutoff {cutoff:g} nm)"]
+    return [f"{label_force(index, force)}: {old} → switching from {target:g} nm (cutoff {cutoff:g} nm)"]
 
 
 def _tighten_ewald(index: int, force: mm.Force, tolerance: float) -> list[str]:
@@ -304,7 +193,7 @@ def _tighten_ewald(index: int, force: mm.Force, tolerance: float) -> list[str]:
     if old <= tolerance:
         return []
     force.setEwaldErrorTolerance(tolerance)
-    return [f"{_label(index, force)}: Ewald error tolerance {old:g} → {tolerance:g}"]
+    return [f"{label_force(index, force)}: Ewald error tolerance {old:g} → {tolerance:g}"]
 
 
 def apply_build_settings(
@@ -330,7 +219,7 @@ def apply_build_settings(
 
 
 def warn_if_not_smooth(system: mm.System, stacklevel: int | None = None) -> bool:
-    """Issue one :class:`NonSmoothForcesWarning` listing all of ``system``'s problems, if any.
+    """Issue one :class:`NonSmoothForcesWarning` listing every :func:`smoothness_problems` entry, if any.
 
     Parameters
     ----------
@@ -351,11 +240,11 @@ def warn_if_not_smooth(system: mm.System, stacklevel: int | None = None) -> bool
     problems = smoothness_problems(system)
     if not problems:
         return False
-    level = _outside_stacklevel() if stacklevel is None else int(stacklevel)
+    level = outside_stacklevel() if stacklevel is None else int(stacklevel)
     listed = "\n".join(f"  - {problem}" for problem in problems)
     warnings.warn(
-        f"the energy-preserving mode needs smooth forces and an NVE System; {len(problems)} problem(s) "
-        f"found:\n{listed}\nSee docs/smooth_forces.md of openmm_alphaprk.",
+        f"the energy-preserving mode needs smooth forces; {len(problems)} problem(s) found:\n{listed}\n"
+        "See help(openmm_alphaprk.smooth_forces).",
         NonSmoothForcesWarning,
         stacklevel=level + 1,
     )
@@ -365,7 +254,7 @@ def warn_if_not_smooth(system: mm.System, stacklevel: int | None = None) -> bool
 _INTERNAL_DIRS = tuple(os.path.dirname(os.path.abspath(path)) + os.sep for path in (__file__, mm.__file__))
 
 
-def _outside_stacklevel() -> int:
+def outside_stacklevel() -> int:
     """Return the stack level of the first frame outside this package and OpenMM (1: our caller's caller)."""
     frame, level = sys._getframe(2), 1
     while frame.f_back is not None and os.path.abspath(frame.f_code.co_filename).startswith(_INTERNAL_DIRS):

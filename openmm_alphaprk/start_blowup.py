@@ -11,14 +11,13 @@ and raises :class:`StartBlowUpError` with the causes instead.
 from __future__ import annotations
 
 import re
-import weakref
 from collections.abc import Callable
 
 import numpy as np
 import openmm as mm
 import openmm.unit as unit
 
-__all__ = ["START_STEPS", "StartBlowUpError", "context_reference", "take_steps"]
+__all__ = ["START_STEPS", "StartBlowUpError", "take_steps"]
 
 #: Steps from an integrator's first during which a NaN is reported as a bad start.
 START_STEPS = 100
@@ -30,19 +29,26 @@ class StartBlowUpError(mm.OpenMMException):
     """The state went to NaN in an integrator's first :data:`START_STEPS` steps (a start it cannot take)."""
 
 
-def context_reference(context: mm.Context | None) -> Callable[[], mm.Context | None]:
-    """Return a weak reference to an integrator's context (a cycle could free the two in the wrong order)."""
-    if context is None:
-        return lambda: None
-    return weakref.ref(context)
-
-
-def take_steps(integrator: mm.CustomIntegrator, steps: int) -> None:
+def take_steps(
+    integrator: mm.CustomIntegrator,
+    steps: int,
+    velocities: Callable[[], tuple[np.ndarray, int]] | None = None,
+) -> None:
     """Run ``steps`` steps of ``integrator``'s program, checking those within the first :data:`START_STEPS`.
 
     Steps up to step :data:`START_STEPS` run as one call (the same steps as part of a
-    longer one), after which the velocities are checked for NaN; steps after it run
+    longer one), after which ``velocities`` are checked for NaN; steps after it run
     unchecked.
+
+    Parameters
+    ----------
+    integrator
+        A step program of this package, bound to a Context.
+    steps
+        Number of steps.
+    velocities
+        Returns the velocities to check (nm/ps) and the step after which they were
+        taken; None checks only OpenMM's own NaN error.
 
     Raises
     ------
@@ -63,14 +69,13 @@ def take_steps(integrator: mm.CustomIntegrator, steps: int) -> None:
         if isinstance(error, StartBlowUpError) or not _NON_FINITE.search(str(error)):
             raise
         raise StartBlowUpError(_message(integrator, f"OpenMM said: {error}")) from error
-    context = getattr(integrator, "_context_ref", lambda: None)()
-    if context is not None:
-        velocities = context.getState(getVelocities=True).getVelocities(asNumpy=True)
-        if not np.isfinite(velocities.value_in_unit(unit.nanometers / unit.picoseconds)).all():
-            found = f"The velocities were NaN or infinite after step {_steps_taken(integrator)}."
+    if velocities is not None:
+        values, after = velocities()
+        if not np.isfinite(values).all():
+            found = f"The velocities were NaN or infinite after step {after}."
             raise StartBlowUpError(_message(integrator, found))
     if steps > first:
-        take_steps(integrator, steps - first)
+        take_steps(integrator, steps - first, velocities)
 
 
 def _steps_taken(integrator: mm.CustomIntegrator) -> int:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 from pathlib import Path
 
 import numpy as np
@@ -59,3 +60,27 @@ def velocities_of(context) -> np.ndarray:
 
 total_energy = observables.total_energy
 constraint_errors = observables.system_constraint_errors
+
+
+_FORCE_OR_ENERGY = re.compile(r"\b(f|energy)\d*\b")
+_INVALIDATES = (mm.CustomIntegrator.ConstrainPositions, mm.CustomIntegrator.UpdateContextState)
+_BLOCK_STARTS = (mm.CustomIntegrator.IfBlockStart, mm.CustomIntegrator.WhileBlockStart)
+
+
+def analysed_blocks(integrator: mm.CustomIntegrator) -> int:
+    """Blocks OpenMM's analysis of a program branches on (its cost doubles or triples with each).
+
+    As in ``CustomIntegratorUtilities::analyzeComputations``: a block counts when a
+    computation inside it reads forces or energy, sets ``x``, constrains positions or
+    updates the context state. A block that only sums and sets globals does not.
+    """
+    steps = [integrator.getComputationStep(i) for i in range(integrator.getNumComputations())]
+    count, open_blocks = 0, []
+    for kind, variable, expression in steps:
+        if kind in _BLOCK_STARTS:
+            open_blocks.append(False)
+        elif kind == mm.CustomIntegrator.BlockEnd:
+            count += open_blocks.pop()
+        elif kind in _INVALIDATES or variable == "x" or _FORCE_OR_ENERGY.search(expression):
+            open_blocks = [True] * len(open_blocks)
+    return count

@@ -43,6 +43,7 @@ def test_energy_mode_keeps_angular_momentum_to_round_off_by_default_without_a_bo
     """Without a periodic box the default midpoint tolerance keeps L (the defaults left 5e-8 at order 2)."""
     integrator = AlphaRattleIntegrator(0.002, alpha="energy", order=order, constraint_tolerance=1e-12)
     problem, ctx = _cluster_context(integrator)
+    integrator.check_context(ctx)
     l0 = angular_momentum(problem, positions_of(ctx).ravel(), velocities_of(ctx).ravel())
     integrator.step(200)
     change = angular_momentum(problem, positions_of(ctx).ravel(), velocities_of(ctx).ravel()) - l0
@@ -64,6 +65,7 @@ def test_totals_give_the_rms_and_maximum_of_every_step():
 def test_a_chosen_midpoint_tolerance_is_kept_without_a_box():
     integrator = AlphaRattleIntegrator(0.002, alpha="energy", order=4, midpoint_tolerance=1e-7)
     _, ctx = _cluster_context(integrator)
+    integrator.check_context(ctx)
     integrator.step(1)
     assert integrator.midpoint_tolerance.value_in_unit(unit.nanometers) == pytest.approx(1e-7)
     integrator.midpoint_tolerance = 1e-8

@@ -21,6 +21,7 @@ LAYERS = {
     "_units": 0,
     "platforms": 0,
     "smooth_forces": 0,
+    "nve": 0,
     "start_blowup": 0,
     "observables": 0,
     "integrators": 1,

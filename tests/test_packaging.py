@@ -62,7 +62,7 @@ def _message_strings(path: Path):
 
 
 #: Messages known to name a docs/ file or a .md page (module: count); adding or removing one fails the test.
-KNOWN_DOCS_POINTERS = {"smooth_forces.py": 1}
+KNOWN_DOCS_POINTERS: dict[str, int] = {}
 
 
 def test_errors_and_warnings_point_at_nothing_a_pip_install_lacks():

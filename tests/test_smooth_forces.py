@@ -1,4 +1,5 @@
-"""Smooth forces (make_smooth, smoothness_problems, the energy mode's warning) and StartBlowUpError."""
+"""Smooth forces (make_smooth, smoothness_problems, state_changing_forces), the energy mode's warnings,
+and StartBlowUpError."""
 
 from __future__ import annotations
 
@@ -17,9 +18,11 @@ from openmm_alphaprk import (
     NonSmoothForcesWarning,
     RattleIntegrator,
     StartBlowUpError,
+    StateChangingForceWarning,
     make_smooth,
     prepare_for_nve,
     smoothness_problems,
+    state_changing_forces,
 )
 from openmm_alphaprk import start_blowup as start_blowup_module
 from openmm_alphaprk.smooth_forces import SMOOTH_EWALD_TOLERANCE
@@ -65,33 +68,61 @@ def _ours(record):
 
 # ------------------------------------------------------------------ the warning
 @pytest.mark.parametrize("order", [2, 4])
-def test_energy_mode_warns_once_at_the_first_step_pointing_at_the_users_call(water, order):
+def test_energy_mode_warns_at_check_context_pointing_at_the_users_call(water, order):
     forcefield, topology, positions = water
     integrator = AlphaRattleIntegrator(0.001, alpha="energy", order=order)
     context = _context(_create(forcefield, topology), integrator, positions)
     with pytest.warns(NonSmoothForcesWarning, match="without a switching function") as record:
-        integrator.step(1)
+        integrator.check_context(context)
     (warning,) = _ours(record)
     assert warning.filename == __file__  # the line above, not inside the package
     assert "Ewald error tolerance of 0.0005" in str(warning.message)
     assert "openmm_alphaprk.make_smooth(system)" in str(warning.message)
     with warnings.catch_warnings(record=True) as again:
         warnings.simplefilter("always")
-        integrator.step(1)
-    assert not _ours(again)  # once per integrator
+        integrator.step(2)
+    assert not _ours(again)  # the check is not repeated at every step
     del context
 
 
-def test_warning_from_simulation_step_points_at_the_users_line(water):
+def test_energy_mode_without_check_context_cannot_see_the_system_and_says_nothing(water):
+    """Without check_context the integrator cannot see its System: no warning, the noisiest tolerance."""
     forcefield, topology, positions = water
     integrator = AlphaRattleIntegrator(0.001, alpha="energy", order=4)
-    simulation = app.Simulation(
-        topology, _create(forcefield, topology), integrator, mm.Platform.getPlatformByName("CPU")
-    )
+    context = _context(_create(forcefield, topology), integrator, positions)
+    with warnings.catch_warnings(record=True) as record:
+        warnings.simplefilter("always")
+        integrator.step(1)
+    assert not _ours(record)
+    atoms = context.getSystem().getNumParticles()
+    single = openmm_alphaprk.platforms.default_energy_tolerance(atoms, "single")
+    assert integrator.energy_tolerance.value_in_unit(unit.kilojoules_per_mole) == pytest.approx(single)
+    with pytest.warns(NonSmoothForcesWarning):
+        integrator.check_context(context)
+    mixed = openmm_alphaprk.platforms.default_energy_tolerance(atoms, "mixed")  # the CPU platform
+    assert integrator.energy_tolerance.value_in_unit(unit.kilojoules_per_mole) == pytest.approx(mixed)
+    assert mixed < 0.8 * single
+
+
+def test_a_barostat_added_before_reinitialize_is_reported_at_the_next_step_at_the_users_line(water):
+    forcefield, topology, positions = water
+    system = _create(forcefield, topology)
+    make_smooth(system)
+    integrator = AlphaRattleIntegrator(0.001, alpha="energy", order=4)
+    simulation = app.Simulation(topology, system, integrator, mm.Platform.getPlatformByName("CPU"))
     simulation.context.setPositions(positions)
-    with pytest.warns(NonSmoothForcesWarning) as record:
+    with warnings.catch_warnings(record=True) as record:
+        warnings.simplefilter("always")
+        integrator.check_context(simulation.context)
         simulation.step(1)
-    (warning,) = _ours(record)
+    assert not [
+        w for w in record if issubclass(w.category, (NonSmoothForcesWarning, StateChangingForceWarning))
+    ]
+    system.addForce(mm.MonteCarloBarostat(1.0, 300.0))
+    simulation.context.reinitialize(preserveState=True)
+    with pytest.warns(StateChangingForceWarning, match="MonteCarloBarostat") as record:
+        simulation.step(1)
+    (warning,) = [w for w in record if issubclass(w.category, StateChangingForceWarning)]
     assert warning.filename == __file__  # not openmm/app/simulation.py
 
 
@@ -104,6 +135,7 @@ def test_no_warning_after_make_smooth(water):
     context = _context(system, integrator, positions)
     with warnings.catch_warnings(record=True) as record:
         warnings.simplefilter("always")
+        integrator.check_context(context)
         integrator.step(2)
     assert not _ours(record)
     del context
@@ -121,11 +153,16 @@ def test_no_warning_after_make_smooth(water):
 def test_fixed_alpha_and_rattle_do_not_warn(water, make):
     forcefield, topology, positions = water
     integrator = make()
-    context = _context(_create(forcefield, topology), integrator, positions)
+    system = _create(forcefield, topology)
+    system.addForce(mm.CMMotionRemover())
+    context = _context(system, integrator, positions)
     with warnings.catch_warnings(record=True) as record:
         warnings.simplefilter("always")
+        integrator.check_context(context)
         integrator.step(2)
-    assert not _ours(record)
+    assert not [
+        w for w in record if issubclass(w.category, (NonSmoothForcesWarning, StateChangingForceWarning))
+    ]
     del context
 
 
@@ -173,8 +210,27 @@ def _custom(switch=None):
 @pytest.mark.parametrize(
     ("force", "words"),
     [
-        (lambda: mm.CMMotionRemover(), ["CMMotionRemover", "removeCMMotion=False", "reference energy"]),
-        (lambda: mm.MonteCarloBarostat(1.0, 300.0), ["MonteCarloBarostat", "remove the barostat"]),
+        (lambda: _nonbonded(ewald=5e-4), ["Ewald error tolerance of 0.0005", "make_smooth(system)"]),
+        (lambda: _nonbonded(method=mm.NonbondedForce.LJPME, ewald=1e-4), ["tolerance of 0.0001"]),
+        (lambda: _nonbonded(switch=None), ["NonbondedForce", "without a switching function", "make_smooth"]),
+        (lambda: _custom(), ["CustomNonbondedForce", "without a switching function", "make_smooth"]),
+    ],
+    ids=["loose-pme", "loose-ljpme", "unswitched", "unswitched-custom"],
+)
+def test_each_problem_is_reported_with_its_fix(force, words):
+    system = _small_system(_nonbonded(), force())
+    (problem,) = smoothness_problems(system)
+    for word in words:
+        assert word in problem
+    assert "(force 1)" in problem
+    assert state_changing_forces(system) == []
+
+
+@pytest.mark.parametrize(
+    ("force", "words"),
+    [
+        (lambda: mm.CMMotionRemover(), ["CMMotionRemover", "removeCMMotion=False", "3 degrees of freedom"]),
+        (lambda: mm.MonteCarloBarostat(1.0, 300.0), ["MonteCarloBarostat", "remove the barostat", "NVE"]),
         (
             lambda: mm.MonteCarloAnisotropicBarostat(mm.Vec3(1, 1, 1), 300.0),
             ["MonteCarloAnisotropicBarostat", "NVE"],
@@ -190,31 +246,17 @@ def _custom(switch=None):
             ["MonteCarloMembraneBarostat", "NVE"],
         ),
         (lambda: mm.MonteCarloFlexibleBarostat(1.0, 300.0), ["MonteCarloFlexibleBarostat", "NVE"]),
-        (lambda: mm.AndersenThermostat(300.0, 1.0), ["AndersenThermostat", "needs no thermostat"]),
-        (lambda: _nonbonded(ewald=5e-4), ["Ewald error tolerance of 0.0005", "make_smooth(system)"]),
-        (lambda: _nonbonded(method=mm.NonbondedForce.LJPME, ewald=1e-4), ["tolerance of 0.0001"]),
-        (lambda: _nonbonded(switch=None), ["NonbondedForce", "without a switching function", "make_smooth"]),
-        (lambda: _custom(), ["CustomNonbondedForce", "without a switching function", "make_smooth"]),
+        (lambda: mm.AndersenThermostat(300.0, 1.0), ["AndersenThermostat", "No temperature is imposed"]),
     ],
-    ids=[
-        "cmmotion",
-        "barostat",
-        "anisotropic",
-        "membrane",
-        "flexible",
-        "andersen",
-        "loose-pme",
-        "loose-ljpme",
-        "unswitched",
-        "unswitched-custom",
-    ],
+    ids=["cmmotion", "barostat", "anisotropic", "membrane", "flexible", "andersen"],
 )
-def test_each_problem_is_reported_with_its_fix(force, words):
+def test_each_state_changing_force_is_reported_apart_from_smoothness(force, words):
     system = _small_system(_nonbonded(), force())
-    (problem,) = smoothness_problems(system)
-    for word in words:
-        assert word in problem
-    assert "(force 1)" in problem
+    (message,) = state_changing_forces(system)
+    for word in [*words, "the energy mode does not apply it", "RattleIntegrator"]:
+        assert word in message
+    assert "(force 1)" in message
+    assert smoothness_problems(system) == []
 
 
 def test_a_smooth_system_and_forces_without_cutoff_have_no_problems():
@@ -226,9 +268,21 @@ def test_warn_if_not_smooth_issues_one_warning_listing_every_problem():
     system = _small_system(_nonbonded(switch=None, ewald=5e-4), mm.CMMotionRemover())
     with pytest.warns(NonSmoothForcesWarning) as record:
         assert openmm_alphaprk.smooth_forces.warn_if_not_smooth(system, stacklevel=1)
-    assert len(record) == 1 and str(record[0].message).count("\n  - ") == 3
+    assert len(record) == 1 and str(record[0].message).count("\n  - ") == 2
+    assert "CMMotionRemover" not in str(record[0].message)
     assert record[0].filename == __file__
     assert not openmm_alphaprk.smooth_forces.warn_if_not_smooth(_small_system(_nonbonded()))
+
+
+def test_warn_if_state_changing_issues_one_warning_of_its_own_class():
+    system = _small_system(_nonbonded(switch=None), mm.CMMotionRemover(), mm.AndersenThermostat(300.0, 1.0))
+    with pytest.warns(StateChangingForceWarning) as record:
+        assert openmm_alphaprk.nve.warn_if_state_changing(system, stacklevel=1)
+    (warning,) = record
+    assert not issubclass(warning.category, NonSmoothForcesWarning)
+    assert str(warning.message).count("\n  - ") == 2 and "switching" not in str(warning.message)
+    assert warning.filename == __file__
+    assert not openmm_alphaprk.nve.warn_if_state_changing(_small_system(_nonbonded(switch=None)))
 
 
 # ------------------------------------------------------------------ make_smooth
@@ -308,21 +362,23 @@ def test_prepare_for_nve_readies_a_default_create_system_and_the_energy_mode_doe
     system = forcefield.createSystem(  # OpenMM's defaults: CMMotionRemover, no switch, Ewald 5e-4
         topology, nonbondedMethod=app.PME, nonbondedCutoff=0.9 * unit.nanometers, constraints=app.HBonds
     )
-    assert len(smoothness_problems(system)) == 3
-    assert len(make_smooth(system)) == 2 and len(smoothness_problems(system)) == 1  # the CMMotionRemover
+    assert len(smoothness_problems(system)) == 2 and len(state_changing_forces(system)) == 1
+    assert len(make_smooth(system)) == 2 and smoothness_problems(system) == []
+    assert len(state_changing_forces(system)) == 1  # make_smooth leaves the CMMotionRemover
     system = forcefield.createSystem(
         topology, nonbondedMethod=app.PME, nonbondedCutoff=0.9 * unit.nanometers, constraints=app.HBonds
     )
     remover = next(i for i, f in enumerate(system.getForces()) if isinstance(f, mm.CMMotionRemover))
     changes = prepare_for_nve(system)
     assert len(changes) == 3 and changes[2].startswith(f"CMMotionRemover (force {remover}): removed (")
-    assert smoothness_problems(system) == []
+    assert smoothness_problems(system) == [] and state_changing_forces(system) == []
     nonbonded = next(f for f in system.getForces() if isinstance(f, mm.NonbondedForce))
     assert nonbonded.getEwaldErrorTolerance() == SMOOTH_EWALD_TOLERANCE
     integrator = AlphaRattleIntegrator(0.001, alpha="energy", order=4)
     context = _context(system, integrator, positions)
     with warnings.catch_warnings(record=True) as record:
         warnings.simplefilter("always")
+        integrator.check_context(context)  # where the energy mode warns
         integrator.step(2)
     assert not _ours(record)
     assert prepare_for_nve(system) == []  # idempotent
@@ -406,7 +462,7 @@ def test_the_blow_up_scenarios_are_real_without_the_check(cluster, water, monkey
     monkeypatch.setattr(
         start_blowup_module,
         "take_steps",
-        lambda integrator, steps: mm.CustomIntegrator.step(integrator, steps),
+        lambda integrator, steps, *velocities: mm.CustomIntegrator.step(integrator, steps),
     )
     system, positions = cluster
     integrator = RattleIntegrator(0.002)

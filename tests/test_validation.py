@@ -226,6 +226,7 @@ def _invariant_changes(prepared, integrator, steps, platform="Reference", every=
     properties = {"Threads": "1"} if platform == "CPU" else {}
     ctx = mm.Context(prepared.system, integrator, plat, properties)
     ctx.setState(prepared.state)
+    integrator.check_context(ctx)  # as the driver does: the platform and the System's box
     system = prepared.system
     m = np.array(
         [system.getParticleMass(i).value_in_unit(unit.dalton) for i in range(system.getNumParticles())]

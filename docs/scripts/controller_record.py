@@ -13,6 +13,7 @@ import openmm as mm
 import openmm.unit as u
 
 from openmm_alphaprk import AlphaRattleIntegrator, RattleIntegrator
+from openmm_alphaprk.integrators import check_context
 from openmm_alphaprk.systems.cache import prepare_system
 
 name, order, steps, platname, prec, out = (
@@ -30,6 +31,7 @@ props = {"Precision": prec} if platname in ("CUDA", "OpenCL") else {}
 
 def ctx(integ):
     c = mm.Context(p.system, integ, plat, props)
+    check_context(integ, c)
     c.setPeriodicBoxVectors(*p.state.getPeriodicBoxVectors())
     c.setPositions(p.positions)
     c.setVelocities(p.velocities)

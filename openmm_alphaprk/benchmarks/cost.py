@@ -21,7 +21,7 @@ from functools import partial
 
 import openmm as mm
 
-from ..integrators import StepProgram
+from ..integrators import StepProgram, check_context
 from ..integrators.names import label, make_integrator
 from ..observables import rms, total_energy
 from ..systems import PreparedSystem, build_water_box
@@ -78,6 +78,7 @@ def _context(
     if tolerance is not None:
         integrator.setConstraintTolerance(tolerance)
     context = mm.Context(box.system, integrator, platform, properties or {})
+    check_context(integrator, context)  # the energy modes' tolerance from the platform's precision
     context.setPositions(box.positions)
     context.setVelocities(box.velocities)
     return context

@@ -14,8 +14,10 @@ OpenMM runs, one computation per line, indented by block.
 
 Modules, each class building on the one before:
 
-- :mod:`~.base`: :class:`StepProgram`, the base (counters, the RATTLE pieces, the
-  platform checks at ``step()``, ``program_listing()``);
+- :mod:`~.binding`: ``SystemCheckedProgram``, what a program knows of its Context
+  (the system check at each ``step()`` call, ``check_context()``);
+- :mod:`~.base`: :class:`StepProgram`, the base (counters, the frame of every
+  program, the RATTLE pieces, ``program_listing()``);
 - :mod:`~.midpoint`: ``MidpointProgram``, α and the midpoint iteration, α-RATTLE-4's
   sub-steps (:mod:`~.triple_jump`: their weights);
 - :mod:`~.controller`: ``EnergyControllerProgram``, the α* controller's step programs,
@@ -27,7 +29,8 @@ Modules, each class building on the one before:
 """
 
 from .alpha_rattle import AlphaRattleIntegrator
-from .base import KIND_VARIABLE, MasslessParticleError, StepProgram, TimestepUnitWarning
+from .base import KIND_VARIABLE, StepProgram, TimestepUnitWarning
+from .binding import MasslessParticleError, SystemSizeError, check_context
 from .midpoint import MidpointConvergenceError
 from .rattle import RattleIntegrator
 from .restore import restore_integrator
@@ -39,6 +42,8 @@ __all__ = [
     "MidpointConvergenceError",
     "RattleIntegrator",
     "StepProgram",
+    "SystemSizeError",
     "TimestepUnitWarning",
+    "check_context",
     "restore_integrator",
 ]

@@ -16,9 +16,10 @@ import openmm.unit as unit
 
 from .. import platforms
 from .._units import to_dimensionless, to_float
+from ..nve import warn_if_state_changing
 from ..observables import positive_int
 from ..smooth_forces import warn_if_not_smooth
-from .base import MasslessParticleError
+from .binding import N_PARTICLES
 from .controller import ControllerSettings
 from .energy_mode import (
     CONTROLLER_DEFAULTS,
@@ -69,8 +70,8 @@ class AlphaRattleIntegrator(EnergyModeProgram):
         level). In the energy mode with a periodic box 1e-7 nm (order 2) or 1e-6 nm
         (order 4, where α* is ~100× smaller), since there it only limits how well
         angular momentum is kept (ΔL ≈ 2hα δx_m × F per step), which a periodic box
-        does not conserve anyway; without a periodic box 1e-13 nm, set at the first
-        step, which keeps angular momentum to round-off.
+        does not conserve anyway; without a periodic box 1e-13 nm, set by
+        :meth:`check_context`, which keeps angular momentum to round-off.
     max_midpoint_iterations
         Cap on midpoint force evaluations per step (in the energy mode summed over the
         trials; a trial takes one or more midpoint evaluations and one (order 2) or two
@@ -80,12 +81,14 @@ class AlphaRattleIntegrator(EnergyModeProgram):
         order 2, (−0.2, 0.2) at order 4.
     energy_tolerance
         Energy mode: target |H − E_ref| after each step (Quantity or kJ/mol). The
-        default (None) is set at the first step from the system's size and the
-        platform's precision, 3× the measured noise of OpenMM's energy
-        (:func:`openmm_alphaprk.platforms.default_energy_tolerance`): 0.011 kJ/mol for
-        2,661 atoms in mixed precision or on the CPU platform, 0.053 for 21k atoms,
-        0.00075 for 2,661 atoms in double precision (Reference). A target inside the
-        noise only buys trials that chase round-off.
+        default (None) is 3× the measured noise of OpenMM's energy for the system's
+        size and the platform's precision
+        (:func:`openmm_alphaprk.platforms.default_energy_tolerance`), set by
+        :meth:`check_context`: 0.011 kJ/mol for 2,661 atoms in mixed precision or on the
+        CPU platform, 0.053 for 21k atoms, 0.00075 for 2,661 atoms in double precision
+        (Reference). Without it the platform is not known, and each ``step()`` call
+        sets the single-precision value (the noisiest: 0.016 kJ/mol for 2,661 atoms). A
+        target inside the noise only buys trials that chase round-off.
     max_trials
         Energy mode: trials per step that may change α; after them α is frozen
         and further trials only converge the midpoint force.
@@ -111,6 +114,12 @@ class AlphaRattleIntegrator(EnergyModeProgram):
     -----
     Where the force is constant, every member of the family is the same map as
     RATTLE: α acts only through how the force varies along the step.
+
+    With a fixed α each step starts with OpenMM's update-context-state step, as a
+    ``VerletIntegrator`` step does: a Monte Carlo barostat, an ``AndersenThermostat``
+    or a ``CMMotionRemover`` acts as it does there. The energy mode leaves them out
+    and runs NVE (:func:`openmm_alphaprk.nve.state_changing_forces` says why);
+    :meth:`check_context` warns about them, and about forces that are not smooth.
     """
 
     _kind = 2
@@ -163,7 +172,11 @@ class AlphaRattleIntegrator(EnergyModeProgram):
             self.setGlobalVariableByName("midpoint_tolerance_automatic", 0)
 
     def _build(self, order: int, settings: ControllerSettings | None) -> None:
-        """Build the program of ``order``: fixed α, or the energy mode with ``settings``."""
+        """Build the program of ``order``: fixed α, or the energy mode with ``settings``.
+
+        Either is the body of :meth:`~.base.StepProgram._add_step`; a fixed α starts
+        with the update-context-state step.
+        """
         if settings is not None:
             self._add_energy_mode_variables(settings, order)
         builders = {
@@ -172,7 +185,7 @@ class AlphaRattleIntegrator(EnergyModeProgram):
             (2, True): self._build_energy_program,
             (4, True): self._build_order4_energy_program,
         }
-        builders[order, settings is not None]()
+        self._add_step(builders[order, settings is not None], update_context_state=settings is None)
 
     def _build_program(self) -> None:
         """Order 2, fixed α: RATTLE at α = 0, else a loop of solves and midpoint forces.
@@ -236,8 +249,11 @@ class AlphaRattleIntegrator(EnergyModeProgram):
             context is left at the start of the failed step.
         MasslessParticleError
             If the system has massless particles (virtual sites) and α ≠ 0, the
-            energy mode, or a platform that places virtual sites only at the end of a
-            step (Reference, CPU).
+            energy mode, a platform that places virtual sites only at the end of a
+            step (Reference, CPU), or a platform not shown to :meth:`check_context`.
+        SystemSizeError
+            If the integrator, bound again, runs a System with more particles than
+            the first one it was bound to.
         StartBlowUpError
             If the state went to NaN in the first 100 steps (:mod:`openmm_alphaprk.start_blowup`).
         """
@@ -254,33 +270,33 @@ class AlphaRattleIntegrator(EnergyModeProgram):
                 "is below the platform's precision, or check the system for overlapping atoms."
             )
 
-    def _prepare(self, context: mm.Context) -> None:
-        super()._prepare(context)
-        system = context.getSystem()
-        self._set_degrees_of_freedom(3 * (system.getNumParticles() - self._massless_count))
+    def _check_system(self, context: mm.Context) -> None:
+        """Energy mode: the default tolerance from the platform's precision, and the System's warnings."""
         if self.energy_mode:
+            system = context.getSystem()
             self._set_automatic_energy_tolerance(system.getNumParticles(), platforms.force_precision(context))
             self._set_system_defaults(system.usesPeriodicBoundaryConditions())
-            warn_if_not_smooth(system)  # points at the user's step() call
+            warn_if_not_smooth(system)  # both point at the user's call
+            warn_if_state_changing(system)
 
-    def _prepare_without_context(self) -> None:
-        super()._prepare_without_context()
-        atoms = len(self.getPerDofVariableByName("x0"))
-        self._set_degrees_of_freedom(3 * atoms)
-        if self.energy_mode:
-            self._set_automatic_energy_tolerance(atoms, "single")
-            self._set_system_defaults(periodic=True)  # the system is not known: no round-off claim
+    def _check_before_steps(self, context: mm.Context | None) -> None:
+        super()._check_before_steps(context)
+        if self.energy_mode and context is None:
+            particles = int(self.getGlobalVariableByName(N_PARTICLES))
+            self._set_automatic_energy_tolerance(particles, platforms.UNKNOWN_PRECISION)
 
-    def _check_before_steps(self) -> None:
-        if self._massless_count and (self.energy_mode or self.alpha != 0.0):
-            raise MasslessParticleError(
+    def _massless_refusal(self, count: int, platform: str | None) -> str | None:
+        if count and (self.energy_mode or self.alpha != 0.0):
+            return (
                 f"{type(self).__name__} with "
                 f"{'the energy mode' if self.energy_mode else f'alpha={self.alpha}'} cannot integrate "
-                f"this system: {self._massless_count} particle(s) have zero mass (virtual sites). "
+                f"this system: {count} particle(s) have zero mass (virtual sites). "
                 "α ≠ 0 takes a force at the unconstrained midpoint of the step, where no OpenMM "
                 "platform places virtual sites. With virtual sites use alpha=0 (RATTLE, or order=4 for "
-                "triple-jump RATTLE) on CUDA, OpenCL or HIP, or openmm.VerletIntegrator."
+                "triple-jump RATTLE) on CUDA, OpenCL or HIP after integrator.check_context(context), or "
+                "openmm.VerletIntegrator."
             )
+        return super()._massless_refusal(count, platform)
 
     def __repr__(self) -> str:
         alpha = "'energy'" if self.energy_mode else self.alpha

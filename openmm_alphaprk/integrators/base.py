@@ -1,12 +1,21 @@
 """The base of every step program of this package, its RATTLE pieces, and the rules all pieces obey.
 
 A step is velocity Verlet with SHAKE/SETTLE positions and RATTLE velocities, or the
-α-RATTLE step (design doc §3) whose implicit midpoint force is found by fixed-point
-iteration. Each piece is an ``_add_*`` method that appends computations to the
-``CustomIntegrator``: the RATTLE pieces are here, on :class:`StepProgram`; the
-midpoint and triple-jump pieces on :class:`~.midpoint.MidpointProgram`, the α*
-controller's on :class:`~.controller.EnergyControllerProgram`.
-:meth:`StepProgram.program_listing` prints the result.
+α-RATTLE step whose implicit midpoint force is found by fixed-point iteration. Each
+piece is an ``_add_*`` method that appends computations to the ``CustomIntegrator``:
+the RATTLE pieces are here, on :class:`StepProgram`; the midpoint and triple-jump
+pieces on :class:`~.midpoint.MidpointProgram`, the α* controller's on
+:class:`~.controller.EnergyControllerProgram`. :meth:`StepProgram.program_listing`
+prints the result.
+
+**The frame of every program** (:meth:`StepProgram._add_step`): an update-context-state
+step (RATTLE and fixed α; not the energy mode), then the system check, then the step
+itself inside ``if (refused < 0.5)``. The system check (:mod:`~.binding`) runs at the
+first step of each ``step()`` call: it counts the degrees of freedom the program moves,
+and refuses the step (takes none of it) when the System has particles without mass
+that the step cannot be right for. OpenMM gives an integrator no access to its
+Context, so the program learns the System this way, and ``check_context`` is the
+explicit call for what needs the platform.
 
 **One program, two semantics** (see :mod:`openmm_alphaprk.platforms`). The pieces
 are ordered so that Reference/CPU and the common platform (CUDA, OpenCL, HIP) take
@@ -24,7 +33,11 @@ the same step:
    positions stored when the constraint step runs. The midpoint block therefore
    constrains x0 (a no-op on x0 that makes it the Reference/CPU reference) before
    setting x_m, and stores x = x0 again after taking the force (the common
-   platform's reference).
+   platform's reference). The update-context-state step comes before x0 is saved;
+   on Reference/CPU the first solve of a step then projects along the positions
+   before it, which are x0 up to round-off whenever a Monte Carlo barostat moved
+   the molecules: it scales their centres and keeps each molecule rigid (OpenMM's
+   default, ``scaleMoleculesAsRigid``).
 3. *No position is written after the step's last force evaluation*, or the next
    step would evaluate the force again. A failed step falls back to its start
    inside the last position solve (``select(midpoint_failed, …)``), not after it.
@@ -33,13 +46,14 @@ the same step:
 from __future__ import annotations
 
 import warnings
+from collections.abc import Callable
 from typing import ClassVar
 
 import openmm as mm
 import openmm.unit as unit
 
-from .. import platforms, start_blowup
 from .._units import to_dimensionless, to_float
+from .binding import REFUSED, SystemCheckedProgram
 
 #: Name of the global variable that identifies the integrator class in serialized form.
 KIND_VARIABLE = "alphaprk_kind"
@@ -62,12 +76,8 @@ _STEP_TYPES = {
 }
 
 
-class MasslessParticleError(RuntimeError):
-    """Raised when a step program cannot be right for a system with massless particles."""
-
-
-class StepProgram(mm.CustomIntegrator):
-    """Common state, RATTLE pieces, platform checks and reporting of this package's integrators.
+class StepProgram(SystemCheckedProgram):
+    """Common state, the frame of every program, RATTLE pieces and reporting of this package's integrators.
 
     Subclasses set ``_kind`` (stored in the global variable :data:`KIND_VARIABLE` so
     that ``restore_integrator`` can recognise a deserialized integrator) and build
@@ -87,17 +97,32 @@ class StepProgram(mm.CustomIntegrator):
         self.addGlobalVariable(STEPS_TAKEN, 0)
         self.addGlobalVariable(STEP_FORCE_EVALUATIONS, 0)
         self.addGlobalVariable(HOST_SYNCS, 0)
-        for name in ("x0", "v0", "massive"):
+        self._add_system_check_variables()
+        for name in ("x0", "v0"):
             self.addPerDofVariable(name, 0)
+
+    # ------------------------------------------------------------ the frame
+    def _add_step(self, body: Callable[[], None], update_context_state: bool) -> None:
+        """Add the whole program: the update-context-state step, the system check, ``body`` unless refused.
+
+        ``update_context_state`` adds OpenMM's update-context-state step first, where
+        barostats, thermostats and the CMMotionRemover act, as at the start of a
+        ``VerletIntegrator`` step.
+        """
+        if update_context_state:
+            self.addUpdateContextState()
+        self._add_system_check()
+        self.beginIfBlock(f"{REFUSED} < 0.5")
+        body()
+        self.endBlock()
 
     # ------------------------------------------------------------ RATTLE pieces
     def _add_save_step_start(self, **copies: str) -> None:
-        """Save the starting state (x0, v0) and ``copies``; mark the DOFs the program can move.
+        """Save the starting state (x0, v0) and ``copies``.
 
         One per-DOF kernel on the common platform (consecutive per-DOF steps merge).
         """
         self.addComputeGlobal("step_force_evaluations", "0")
-        self.addComputePerDof("massive", "1")
         self.addComputePerDof("x0", "x")
         self.addComputePerDof("v0", "v")
         for variable, expression in copies.items():
@@ -140,69 +165,6 @@ class StepProgram(mm.CustomIntegrator):
         """Add the step's force evaluations to the totals and count the step."""
         self.addComputeGlobal("force_evaluations", "force_evaluations + step_force_evaluations")
         self.addComputeGlobal("steps_taken", "steps_taken + 1")
-
-    # ---------------------------------------------------------------- stepping
-    def step(self, steps: int) -> None:
-        """Advance the context by ``steps`` steps.
-
-        The first call finds the bound context, prepares the program for its system and
-        platform, and refuses what it cannot do right (:class:`MasslessParticleError`);
-        a NaN in the first 100 steps raises :class:`~openmm_alphaprk.start_blowup.StartBlowUpError`.
-        """
-        steps = int(steps)
-        if steps <= 0:
-            return
-        if not getattr(self, "_prepared", False):
-            context = platforms.find_context(self)
-            self._context_ref = start_blowup.context_reference(context)
-            if context is None:
-                self._prepare_without_context()
-                start_blowup.take_steps(self, 1)
-                self._check_massive_after_first_step()
-                steps -= 1
-            else:
-                self._prepare(context)
-            self._prepared = True
-        self._check_before_steps()
-        if steps > 0:
-            start_blowup.take_steps(self, steps)
-
-    def _prepare(self, context: mm.Context) -> None:
-        """Check the system against the platform before the first step (subclasses add more)."""
-        system = context.getSystem()
-        massless = platforms.massless_particles(system)
-        self._massless_count = len(massless)
-        self._common_platform = platforms.runs_common_platform(context)
-        if massless and not self._common_platform:
-            raise MasslessParticleError(
-                f"{type(self).__name__} cannot integrate this system on the "
-                f"{context.getPlatform().getName()} platform: {len(massless)} particle(s) have zero "
-                f"mass (first index {massless[0]}), e.g. the M-sites of TIP4P-Ew or OPC water. The "
-                "Reference and CPU platforms place virtual sites only at the end of a CustomIntegrator "
-                "step, so forces taken inside the step would see stale sites. Run it on CUDA, OpenCL or "
-                "HIP (which place them at every constraint step; α = 0 only), use a water model without "
-                "virtual sites (TIP3P, SPC/E), or use openmm.VerletIntegrator."
-            )
-
-    def _prepare_without_context(self) -> None:
-        """Fallback when the bound context cannot be found: check massless particles after a step."""
-        self._massless_count = 0
-        self._common_platform = False
-
-    def _check_massive_after_first_step(self) -> None:
-        massive = self.getPerDofVariableByName("massive")
-        massless = [i for i, flag in enumerate(massive) if flag[0] != 1.0]
-        if massless:
-            raise MasslessParticleError(
-                f"{type(self).__name__} cannot integrate this system: {len(massless)} particle(s) have "
-                f"zero mass (first index {massless[0]}), e.g. virtual sites, and the context this "
-                "integrator is bound to could not be found to check its platform. The context was "
-                "advanced by one step and should be discarded. Use a water model without virtual sites "
-                "(TIP3P, SPC/E) or openmm.VerletIntegrator."
-            )
-
-    def _check_before_steps(self) -> None:
-        """Check before every ``step()`` call after the first (subclasses add to it)."""
 
     # -------------------------------------------------------------- reporting
     def program_listing(self) -> str:
@@ -250,8 +212,8 @@ class StepProgram(mm.CustomIntegrator):
 
         The force at the start of a step is the one computed at the end of the
         previous step and is not counted; OpenMM recomputes it (uncounted) only after
-        the user changes the state, or on CUDA/OpenCL/HIP after it reorders the atoms
-        (every 250 steps).
+        the user or a barostat changes the state, or on CUDA/OpenCL/HIP after it
+        reorders the atoms (every 250 steps).
         """
         return int(self.getGlobalVariableByName(FORCE_EVALUATIONS))
 
@@ -259,9 +221,10 @@ class StepProgram(mm.CustomIntegrator):
     def host_syncs_per_step(self) -> float:
         """Mean sums over degrees of freedom per step (NaN before the first step).
 
-        Each is a device-to-host synchronisation on CUDA, OpenCL and HIP. Reading
-        ``energy`` in the program is not counted: on those platforms the energy comes
-        with the force evaluation that needs it.
+        Each is a device-to-host synchronisation on CUDA, OpenCL and HIP. Not
+        counted: reading ``energy`` in the program (on those platforms the energy comes
+        with the force evaluation that needs it), and the one sum of the system check
+        at the first step of each ``step()`` call.
         """
         steps = self.steps_taken
         return self.getGlobalVariableByName(HOST_SYNCS) / steps if steps else float("nan")

@@ -64,7 +64,6 @@ class MidpointProgram(StepProgram):
             "previous_midpoint_change",
             "need_midpoint",
             "solving",
-            "ndof",
             "midpoint_failed",
             "midpoint_failures",
             "sum_change2",
@@ -176,9 +175,6 @@ class MidpointProgram(StepProgram):
         self.addComputeGlobal("alpha_sub", "0")
         self.addComputeGlobal("need_midpoint", "0")
         self.addComputeGlobal("previous_midpoint_change", "1e30")
-
-    def _set_degrees_of_freedom(self, ndof: int) -> None:
-        self.setGlobalVariableByName("ndof", ndof)
 
     # -------------------------------------------------------------- parameters
     @property

@@ -17,6 +17,12 @@ class RattleIntegrator(StepProgram):
     every comparison. Velocities are at the full step, so ``State.getKineticEnergy()``
     is the kinetic energy of the current velocities. One force evaluation per step.
 
+    Each step starts with OpenMM's update-context-state step, as a
+    ``VerletIntegrator`` step does: a Monte Carlo barostat, an ``AndersenThermostat``
+    or a ``CMMotionRemover`` in the System acts as it does with ``VerletIntegrator``.
+    With particles without mass (virtual sites) call :meth:`check_context` on CUDA,
+    OpenCL or HIP; they are refused elsewhere.
+
     Parameters
     ----------
     timestep
@@ -33,9 +39,10 @@ class RattleIntegrator(StepProgram):
         constraint_tolerance: float = DEFAULT_CONSTRAINT_TOLERANCE,
     ) -> None:
         super().__init__(timestep, constraint_tolerance)
-        self._build_program()
+        self._add_step(self._build_program, update_context_state=True)
 
     def _build_program(self) -> None:
+        """One RATTLE step: the position solve with F(x0), the velocity update with F(x1)."""
         self._add_save_step_start()
         self._add_position_solve("0.5*f")
         self._add_velocity_update("0.5*f")

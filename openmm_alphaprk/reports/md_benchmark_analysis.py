@@ -105,6 +105,7 @@ def timing_table(system: str, steps: int = 30, rounds: int = 3) -> dict[str, dic
     import openmm as mm
 
     from ..benchmarks.cost import interleaved_timing
+    from ..integrators import check_context
     from ..integrators.names import make_integrator
     from ..systems import prepare_system
 
@@ -114,6 +115,7 @@ def timing_table(system: str, steps: int = 30, rounds: int = 3) -> dict[str, dic
     for integrator_name, step in ENERGY_ROWS:
         integrator = make_integrator(integrator_name, step / 1000.0, 1e-8)
         context = mm.Context(prepared.system, integrator, platform)
+        check_context(integrator, context)
         context.setState(prepared.state)
         integrator.step(2)  # program analysis, first forces
         runs[label(integrator_name, step)] = (integrator, context, step)

@@ -129,6 +129,7 @@ def _tight_midpoint_run(prepared, n_steps: int, interval: int) -> dict:
     simulation = app.Simulation(
         prepared.topology, prepared.system, integrator, mm.Platform.getPlatformByName("Reference")
     )
+    integrator.check_context(simulation.context)  # the tolerance for double precision
     simulation.context.setState(prepared.state)
     reporter = InvariantReporter(prepared.system, prepared.state, interval)
     simulation.reporters.append(reporter)

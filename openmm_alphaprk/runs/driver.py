@@ -28,6 +28,7 @@ import openmm.app as app
 import openmm.unit as unit
 from tqdm import tqdm
 
+from ..integrators import check_context
 from ..integrators.names import IntegratorSpec, check_compatible, make_integrator, parse_integrator
 from ..systems import PreparedSystem, prepare_system
 from . import rundir
@@ -199,9 +200,11 @@ def _prepare_system(
 def _simulation(run: _Run) -> app.Simulation:
     """Return the run's Simulation: its integrator, System and platform."""
     integrator = make_integrator(run.spec, run.options.timestep_ps, run.options.constraint_tolerance)
-    return app.Simulation(
+    simulation = app.Simulation(
         run.prepared.topology, run.prepared.system, integrator, run.platform, run.properties
     )
+    check_context(integrator, simulation.context)  # the platform's precision, virtual sites
+    return simulation
 
 
 def _restore(simulation: app.Simulation, run: _Run) -> int:
