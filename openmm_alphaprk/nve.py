@@ -10,8 +10,6 @@ with a fixed α apply them like ``openmm.VerletIntegrator``; the energy mode doe
 
 from __future__ import annotations
 
-import warnings
-
 import openmm as mm
 import openmm.unit as unit
 
@@ -20,7 +18,7 @@ from .smooth_forces import (
     SMOOTH_EWALD_TOLERANCE,
     label_force,
     make_smooth,
-    outside_stacklevel,
+    warn_listing,
 )
 
 __all__ = ["StateChangingForceWarning", "prepare_for_nve", "state_changing_forces", "warn_if_state_changing"]
@@ -182,14 +180,8 @@ def warn_if_state_changing(system: mm.System, stacklevel: int | None = None) -> 
 
     """
     forces = state_changing_forces(system)
-    if not forces:
-        return False
-    level = outside_stacklevel() if stacklevel is None else int(stacklevel)
-    listed = "\n".join(f"  - {force}" for force in forces)
-    warnings.warn(
+    heading = (
         f"the energy-preserving mode runs NVE; {len(forces)} force(s) of this System change the state "
-        f"between steps and are not applied:\n{listed}\nSee help(openmm_alphaprk.nve).",
-        StateChangingForceWarning,
-        stacklevel=level + 1,
+        "between steps and are not applied"
     )
-    return True
+    return warn_listing(forces, heading, "openmm_alphaprk.nve", StateChangingForceWarning, stacklevel)

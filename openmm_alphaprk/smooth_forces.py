@@ -238,16 +238,24 @@ def warn_if_not_smooth(system: mm.System, stacklevel: int | None = None) -> bool
 
     """
     problems = smoothness_problems(system)
-    if not problems:
-        return False
-    level = outside_stacklevel() if stacklevel is None else int(stacklevel)
-    listed = "\n".join(f"  - {problem}" for problem in problems)
-    warnings.warn(
-        f"the energy-preserving mode needs smooth forces; {len(problems)} problem(s) found:\n{listed}\n"
-        "See help(openmm_alphaprk.smooth_forces).",
-        NonSmoothForcesWarning,
-        stacklevel=level + 1,
+    heading = f"the energy-preserving mode needs smooth forces; {len(problems)} problem(s) found"
+    return warn_listing(
+        problems, heading, "openmm_alphaprk.smooth_forces", NonSmoothForcesWarning, stacklevel
     )
+
+
+def warn_listing(
+    items: list[str], heading: str, module: str, category: type[Warning], stacklevel: int | None
+) -> bool:
+    """Issue one ``category`` warning: ``heading``, a line per item, where to read more; False if none.
+
+    ``stacklevel`` as for :func:`warn_if_not_smooth`, counted from the caller of that function.
+    """
+    if not items:
+        return False
+    level = outside_stacklevel() if stacklevel is None else int(stacklevel) + 1
+    listed = "\n".join(f"  - {item}" for item in items)
+    warnings.warn(f"{heading}:\n{listed}\nSee help({module}).", category, stacklevel=level + 1)
     return True
 
 
