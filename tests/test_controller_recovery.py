@@ -110,3 +110,70 @@ def test_energy_modes_never_worse_than_rattle_on_a_solute_with_hbond_constraints
     rattle_rms, rattle_max = _rms_and_max(RattleIntegrator(2 * unit.femtosecond), *args)
     rms, worst = _rms_and_max(_energy_mode(order), *args)
     assert rms <= rattle_rms and worst <= rattle_max, (rms, rattle_rms, worst, rattle_max)
+
+
+def _rms_of(integrator: mm.Integrator, problem, steps: int) -> float:
+    return _rms_and_max(integrator, *problem, steps, REFERENCE)[0]
+
+
+def test_order4_energy_mode_beats_every_fixed_alpha_of_a_scan_on_a_solute(solute_in_vacuum):
+    """α* predicted from the past steps: better than the best α the user could have fixed.
+
+    Before the first trial's α was predicted (it started from the last α*), this
+    failed: the controller lost to a fixed α it could have chosen.
+    """
+    steps = 200
+    fixed = {
+        alpha: _rms_of(AlphaRattleIntegrator(0.002, alpha=alpha, order=4), solute_in_vacuum, steps)
+        for alpha in (0.0, 0.005, 0.01, 0.015, 0.02)
+    }
+    energy_mode = _rms_of(_energy_mode(4), solute_in_vacuum, steps)
+    assert energy_mode < min(fixed.values()), (energy_mode, fixed)
+
+
+def test_a_corrupted_prediction_is_recovered_without_throwing_alpha_to_its_bounds(water_box):
+    """After the warm-up the AR(2) fits are made to predict S with the wrong sign.
+
+    The first trial then moves α the wrong way; the second trial measures the slope,
+    the fits relearn it, and α stays well inside its bounds while H − E_ref returns
+    to the level of an undisturbed run.
+    """
+    undisturbed = _energy_mode(4)
+    context = make_context(water_box.system, undisturbed, water_box.positions, water_box.velocities, CPU)
+    undisturbed.step(60)
+    reference = undisturbed.getGlobalVariableByName("reference_energy")
+    quiet = [abs(total_energy(context) - reference)]
+    for _ in range(40):
+        undisturbed.step(1)
+        quiet.append(abs(total_energy(context) - reference))
+
+    integrator = _energy_mode(4)
+    context = make_context(water_box.system, integrator, water_box.positions, water_box.velocities, CPU)
+    integrator.step(60)
+    assert integrator.getGlobalVariableByName("use_prediction") == 1
+    reference = integrator.getGlobalVariableByName("reference_energy")
+    prediction = _ar2_prediction(integrator, "slope")
+    for name in ("slope_lag1", "slope_lag2"):
+        integrator.setGlobalVariableByName(name, -integrator.getGlobalVariableByName(name))
+    integrator.step(1)
+    assert integrator.getGlobalVariableByName("predicted_slope") == pytest.approx(-prediction, rel=1e-9)
+    alphas, residuals = [], []
+    for _ in range(40):
+        integrator.step(1)
+        alphas.append(integrator.alpha)
+        residuals.append(abs(total_energy(context) - reference))
+    low, high = integrator.alpha_bounds
+    assert max(np.abs(alphas)) < 0.5 * high
+    assert np.sqrt(np.mean(np.square(residuals[10:]))) < 2 * np.sqrt(np.mean(np.square(quiet[10:]))) + 0.005
+
+
+def _ar2_prediction(integrator: AlphaRattleIntegrator, series: str) -> float:
+    """The next value of ``series`` by the ridge-regularised AR(2) fit held in the integrator's globals."""
+    parts = ("g11", "g12", "g22", "b1", "b2")
+    value = {part: integrator.getGlobalVariableByName(f"{series}_{part}") for part in parts}
+    ridge = 0.005 * (value["g11"] + value["g22"])
+    gram = np.array([[value["g11"] + ridge, value["g12"]], [value["g12"], value["g22"] + ridge]])
+    coefficients = np.linalg.solve(gram, [value["b1"], value["b2"]])
+    lags = [integrator.getGlobalVariableByName(f"{series}_lag{k}") for k in (1, 2)]
+    assert abs(coefficients @ lags) > 0
+    return float(coefficients @ lags)

@@ -16,13 +16,16 @@ controller runs entirely inside the ``CustomIntegrator`` step program, in one
 4. the next α by a damped secant step, Δα = −r S/(S² + (d S̄)²), with S = dr/dα
    measured inside this step, S̄ a running geometric mean of |S| over past steps and
    d = ``slope_damping``: where the slope nearly vanishes no bounded α can help, and
-   throwing α far would spoil the steps after it. The first trial has no slope yet;
-   it uses the last step's and moves α by at least ``alpha_probe`` so that the
-   second trial measures one (at a bound, where that move would leave the interval,
-   it probes inwards). Every move is limited to ``max_alpha_change`` (at order 4 a
-   limit that halves when α swings back and forth, see ``_add_trust_update``) and clipped to
-   the α bounds. A new trial first solves x1 again with the new α and the last
-   midpoint force, then goes on with step 2.
+   throwing α far would spoil the steps after it. The first trial's α is predicted
+   (:meth:`EnergyControllerProgram._add_alpha_prediction`): the step's energy change
+   at α = 0 and its slope S, fitted step by step as AR(2) series, give the α that
+   should land on E_ref; most steps on a water box need no second trial. The
+   second trial starts from the predicted slope and moves α by at least
+   ``alpha_probe`` so that the step measures its own slope (at a bound, where that
+   move would leave the interval, it probes inwards). Every move is limited to
+   ``max_alpha_change`` (at order 4 a limit that halves when α swings back and forth,
+   see ``_add_trust_update``) and clipped to the α bounds. A new trial first solves
+   x1 again with the new α and the last midpoint force, then goes on with step 2.
 
 At order 4 (α-RATTLE-4) the first RATTLE sub-step is taken once, and a trial redoes
 the middle α-RATTLE sub-step (steps 1–2 with h scaled by γ2) and the last RATTLE
@@ -79,6 +82,23 @@ ALPHA_AT_BOUND = "alpha_at_bound"
 SLOPE = "slope"
 SLOPE_SCALE = "slope_scale"
 
+PREDICTED_D0 = "predicted_d0"
+PREDICTED_SLOPE = "predicted_slope"
+
+#: Forgetting factor λ of the running AR(2) fits of D0 and S (an effective memory of
+#: 1/(1 − λ) = 20 steps).
+PREDICTOR_FORGETTING = 0.95
+#: Steps with measured D0 and S before the first trial's α comes from the prediction.
+PREDICTOR_WARMUP = 20
+#: The series the controller predicts: D0, the one-step energy change at α = 0, and S = dH/dα.
+_PREDICTED_SERIES = ("d0", "slope")
+#: Each series' last two values and its exponentially weighted normal equations.
+_PREDICTOR_STATE = tuple(
+    f"{series}_{part}"
+    for series in _PREDICTED_SERIES
+    for part in ("lag1", "lag2", "g11", "g12", "g22", "b1", "b2")
+)
+
 #: Energy tolerance (kJ/mol) until the first step sets the automatic one.
 PROVISIONAL_ENERGY_TOLERANCE = 0.01
 #: Relative energy change between steps below which a moved state counts as the same
@@ -96,6 +116,19 @@ class ControllerSettings:
     max_alpha_change: float
     alpha_probe: float
     slope_damping: float
+    predict: bool = True
+
+
+def _ar2_prediction(series: str) -> str:
+    """Expression of the next value of ``series`` by its ridge-regularised AR(2) fit."""
+    return (
+        f"a1*{series}_lag1 + a2*{series}_lag2;"
+        f"a1 = ((g22 + ridge)*{series}_b1 - {series}_g12*{series}_b2)/det;"
+        f"a2 = ((g11 + ridge)*{series}_b2 - {series}_g12*{series}_b1)/det;"
+        f"det = max((g11 + ridge)*(g22 + ridge) - {series}_g12^2, 1e-300);"
+        "ridge = 0.005*(g11 + g22);"
+        f"g11 = {series}_g11; g22 = {series}_g22"
+    )
 
 
 class EnergyControllerProgram(MidpointProgram):
@@ -115,6 +148,8 @@ class EnergyControllerProgram(MidpointProgram):
             ("alpha_probe", settings.alpha_probe),
             ("slope_damping", settings.slope_damping),
             ("trust", settings.max_alpha_change),  # the move limit; adapted at order 4 only
+            ("predictor_forgetting", PREDICTOR_FORGETTING),
+            ("predictor_warmup", PREDICTOR_WARMUP if settings.predict else 1e30),
         ):
             self.addGlobalVariable(name, value)
         for name in (
@@ -147,6 +182,14 @@ class EnergyControllerProgram(MidpointProgram):
             "predictor_valid",
             "sum_residual_squared",
             "max_abs_residual",
+            "start_residual",
+            "first_residual",
+            "first_alpha",
+            PREDICTED_D0,
+            PREDICTED_SLOPE,
+            "use_prediction",
+            "predictor_steps",
+            *_PREDICTOR_STATE,
         ):
             self.addGlobalVariable(name, 0)
         self.addGlobalVariable("midpoint_tolerance_automatic", 1)  # 0: the user chose it
@@ -241,6 +284,10 @@ class EnergyControllerProgram(MidpointProgram):
             f"same = max(energy_tolerance, {_SAME_ENERGY}*abs(end_energy))",
         )
         self.addComputeGlobal("reference_energy", "select(retake, start_energy, reference_energy)")
+        # H − E_ref at the step's start is end_energy − E_ref (zero after a retake)
+        self.addComputeGlobal("end_energy", "select(retake, start_energy, end_energy)")
+        for name in ("predictor_steps", *_PREDICTOR_STATE):
+            self.addComputeGlobal(name, f"{name}*(1 - retake)")
         self.addComputeGlobal("reference_resets", "reference_resets + retake")
         self.addComputeGlobal("predictor_valid", "predictor_valid*(1 - retake)")
         self.addComputeGlobal("slope", "select(retake, 0, slope)")
@@ -253,6 +300,35 @@ class EnergyControllerProgram(MidpointProgram):
         self.addComputeGlobal("alpha", "min(max(alpha, alpha_min), alpha_max)")
         for name in ("trials", "slope_measured", "controller_done", "restarting"):
             self.addComputeGlobal(name, "0")
+        self._add_alpha_prediction()
+
+    def _add_alpha_prediction(self) -> None:
+        """Predict the first trial's α from the step's predicted D0 and S (after the warm-up).
+
+        H − E_ref after a step taken with α is, to first order in α,
+        r = r_start + D0 + α S: r_start the residual the step starts with, D0 the
+        step's energy change at α = 0, S = dH/dα. Both D0 and S oscillate smoothly
+        from step to step; each is predicted by an AR(2) model, x_n ≈ a1 x_{n−1} + a2
+        x_{n−2}, fitted by exponentially weighted least squares (forgetting factor
+        ``predictor_forgetting``, a ridge of 1 % of the mean diagonal) over the
+        steps so far. The first trial then takes the damped Newton α for the
+        predicted r, within ``trust`` of the last α* and the bounds, and the second
+        trial (if any) starts from the predicted slope. Before ``predictor_warmup``
+        steps with a measured S the first trial keeps the last α*.
+        """
+        self.addComputeGlobal("start_residual", "end_energy - reference_energy")
+        for series, variable in zip(_PREDICTED_SERIES, (PREDICTED_D0, PREDICTED_SLOPE)):
+            self.addComputeGlobal(variable, _ar2_prediction(series))
+        self.addComputeGlobal("use_prediction", "step(predictor_steps - predictor_warmup + 0.5)")
+        self.addComputeGlobal(
+            "alpha",
+            "select(use_prediction, min(max(limited, alpha_min), alpha_max), alpha);"
+            "limited = min(max(newton, alpha_start - trust), alpha_start + trust);"
+            "newton = -(start_residual + predicted_d0)*predicted_slope"
+            "/(predicted_slope^2 + (slope_damping*slope_scale)^2 + 1e-30)",
+        )
+        self.addComputeGlobal("slope", "select(use_prediction, predicted_slope, slope)")
+        self.addComputeGlobal("first_alpha", "alpha")
 
     def _add_trial_midpoint_force(self, h: str, alpha: str) -> None:
         """One pass of the midpoint block: the controller converges the midpoint along with α.
@@ -282,6 +358,7 @@ class EnergyControllerProgram(MidpointProgram):
         self._add_sum("kinetic_energy", "0.5*m*v*v")
         self.addComputeGlobal("residual", "energy + kinetic_energy - reference_energy")
         self.addComputeGlobal("trials", "trials + 1")
+        self.addComputeGlobal("first_residual", "select(delta(trials - 1), residual, first_residual)")
         self._add_alpha_update()
         # a midpoint that ran away: one more pass without a midpoint force falls back to the start
         self.addComputeGlobal(
@@ -357,7 +434,35 @@ class EnergyControllerProgram(MidpointProgram):
         self.addComputeGlobal("sum_residual_squared", "sum_residual_squared + residual^2")
         self.addComputeGlobal("max_abs_residual", "max(max_abs_residual, abs(residual))")
         self._add_slope_scale_update()
+        self._add_predictor_update()
         self.addComputeGlobal("predictor_valid", "1 - midpoint_failed")
+
+    def _add_predictor_update(self) -> None:
+        """Add the step's D0 and S to the AR(2) fits (not after a rejected step).
+
+        S is the in-step secant slope when the step took a second trial, else the
+        slope the step assumed (the prediction; during the warm-up the last
+        measured one); D0 = r₁ − r_start − α₁ S from the first trial's residual r₁.
+        """
+        self.addComputeGlobal(
+            "predictor_steps", "predictor_steps + (1 - midpoint_failed)*max(slope_measured, use_prediction)"
+        )
+        observed = {"d0": "first_residual - start_residual - first_alpha*slope", "slope": "slope"}
+        lam = "predictor_forgetting"
+        for series in _PREDICTED_SERIES:
+            x = f"({observed[series]})"
+            lag1, lag2 = f"{series}_lag1", f"{series}_lag2"
+            for part, term in (
+                ("g11", f"{lag1}*{lag1}"),
+                ("g12", f"{lag1}*{lag2}"),
+                ("g22", f"{lag2}*{lag2}"),
+                ("b1", f"{lag1}*{x}"),
+                ("b2", f"{lag2}*{x}"),
+            ):
+                name = f"{series}_{part}"
+                self.addComputeGlobal(name, f"select(midpoint_failed, {name}, {lam}*{name} + {term})")
+            self.addComputeGlobal(lag2, f"select(midpoint_failed, {lag2}, {lag1})")
+            self.addComputeGlobal(lag1, f"select(midpoint_failed, {lag1}, {x})")
 
     def _add_slope_scale_update(self) -> None:
         """S̄, the damping scale: a running geometric mean of the in-step slopes |S|.

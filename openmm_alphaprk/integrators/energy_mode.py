@@ -85,6 +85,7 @@ def controller_settings(
         to_dimensionless(max_alpha_change, "max_alpha_change", positive=True),
         to_dimensionless(alpha_probe, "alpha_probe", positive=True),
         to_dimensionless(slope_damping, "slope_damping"),
+        predict=order == 4,
     )
     if settings.slope_damping < 0:
         raise ValueError(f"slope_damping must be >= 0 (0 turns the damping off), got {slope_damping}.")
