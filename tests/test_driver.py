@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 
 import numpy as np
 import openmm.unit as unit
@@ -431,3 +432,32 @@ def test_a_finished_run_with_an_older_summary_is_summarized_again(cluster, tmp_p
     again = run_nve(cluster, "energy", tmp_path, steps=20, **REFERENCE_RUN)
     assert again == first  # the same numbers, from the same files and final checkpoint
     assert json.loads(path.read_text(encoding="utf-8")) == first.as_dict()
+
+
+def test_compare_runs_rattle_at_h_over_k_and_states_the_gain_at_equal_cost(cluster, tmp_path):
+    """RATTLE at h/k, k = ⌈the energy mode's evaluations per step⌉, over the same simulated time."""
+    result = compare(cluster, ["rattle", "energy4"], tmp_path / "cmp", steps=20, plot=False, **REFERENCE_RUN)
+    rattle, energy, *extra = result.summaries
+    k = math.ceil(energy.force_evaluations_per_step)
+    (equal_cost,) = extra
+    assert equal_cost.integrator == f"rattle h/{k}"
+    assert equal_cost.steps == 20 * k and equal_cost.simulated_ps == pytest.approx(energy.simulated_ps)
+    assert equal_cost.timestep_fs == pytest.approx(rattle.timestep_fs / k)
+    assert equal_cost.energy_samples == energy.energy_samples  # read at the same simulated times
+    stored = json.loads((tmp_path / "cmp" / "comparison.json").read_text(encoding="utf-8"))
+    (gain,) = stored["equal_cost"]
+    assert gain["k"] == k and gain["rattle_row"] == equal_cost.integrator
+    assert gain["gain"] == pytest.approx(equal_cost.rms_residual / energy.rms_residual)
+    assert f"{gain['gain']:.3g}x lower" in result.table
+    assert f"rattle h/{k}" in result.table.splitlines()[5]
+    # a finished h/k run is reported like the others: a second call runs nothing new
+    again = compare(cluster, ["rattle", "energy4"], tmp_path / "cmp", steps=20, plot=False, **REFERENCE_RUN)
+    assert again.summaries == result.summaries
+
+
+def test_compare_without_equal_cost_runs_only_the_listed_integrators(cluster, tmp_path):
+    result = compare(
+        cluster, ["rattle", "energy4"], tmp_path, steps=6, plot=False, equal_cost=False, **REFERENCE_RUN
+    )
+    assert [s.integrator for s in result.summaries] == ["rattle", "energy4"]
+    assert "at equal cost" not in result.table

@@ -123,7 +123,9 @@ def cmd_compare(args) -> int:
     options = _run_options(args)
     output = args.output or f"alphaprk-compare-{args.system}"
     system = _prepare(args.system, args, rebuild=True, specs=specs) if args.rebuild else args.system
-    result = compare(system, args.integrators, output, options, plot=not args.no_plot)
+    result = compare(
+        system, args.integrators, output, options, plot=not args.no_plot, equal_cost=not args.no_equal_cost
+    )
     print(result.table)
     print(
         f"\nresults: {result.output / 'comparison.json'}"

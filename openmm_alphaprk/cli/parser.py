@@ -102,7 +102,10 @@ def _add_compare_parser(sub) -> None:
             "|H - E_ref| kJ/mol with E_ref the total energy of the start state, max relative constraint "
             "error, force evaluations per step, ns/day) and write comparison.json, table.txt and "
             "energy_residuals.png into the output folder, by default alphaprk-compare-<system> in the "
-            "current directory (-o to choose another). " + VERLET_NOTE
+            "current directory (-o to choose another). After the listed runs, RATTLE also runs at h/k "
+            "for the same simulated time, k the force evaluations per step of an energy-mode row rounded "
+            "up: the table states each energy mode's gain at equal cost (--no-equal-cost skips it). "
+            + VERLET_NOTE
         ),
         epilog=f"Integrators: {INTEGRATOR_HELP}.",
     )
@@ -124,6 +127,11 @@ def _add_compare_parser(sub) -> None:
         help="output folder (default: alphaprk-compare-<system> in the current directory, created there)",
     )
     comp.add_argument("--no-plot", action="store_true", help="skip the figure (no matplotlib needed)")
+    comp.add_argument(
+        "--no-equal-cost",
+        action="store_true",
+        help="skip the RATTLE h/k row(s) that give the energy modes' gain at equal cost",
+    )
     _add_rebuild(comp)
     _add_run_options(comp)
 

@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import json
+import math
 import os
 import textwrap
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from ..integrators.names import IntegratorSpec, check_compatible, parse_integrator
@@ -41,6 +42,7 @@ def compare(
     options: RunOptions | None = None,
     *,
     plot: bool = True,
+    equal_cost: bool = True,
     **keywords,
 ) -> Comparison:
     """Run every integrator from the same start state and compare energy conservation and cost.
@@ -68,6 +70,11 @@ def compare(
         as for :func:`~openmm_alphaprk.runs.run_nve`.
     plot
         Write the figure (needs matplotlib).
+    equal_cost
+        After the listed runs, also run RATTLE at h/k for the same simulated time, k the
+        measured force evaluations per step of an energy-mode row rounded up (one run
+        per distinct k; folder ``rattle_h_k``), and state each energy-mode row's gain at
+        equal cost, RMS(H − E_ref) of RATTLE at h/k over the row's (table, JSON).
 
     Raises
     ------
@@ -86,11 +93,81 @@ def compare(
         rundir.check_run_directory(directories[spec.name], rundir.run_parameters(prepared, spec, options))
     output.mkdir(parents=True, exist_ok=True)
     summaries = [run_nve(prepared, spec, directories[spec.name], options) for spec in specs]
+    if equal_cost:
+        for k in equal_cost_divisors(summaries):
+            name = equal_cost_name(k)
+            directories[name] = output / rundir.folder_name(name)
+            summaries.append(_run_equal_cost_rattle(prepared, k, directories[name], options))
+    gains = equal_cost_gains(summaries)
     header = _header(prepared, summaries[0], options)
-    table = format_table(summaries, header, any(spec.kind == "verlet" for spec in specs))
-    figure = _figure(directories, output, summaries[0], options) if plot else None
-    _write(output, prepared.name, header, directories, summaries, figure, table)
+    table = format_table(summaries, header, any(spec.kind == "verlet" for spec in specs), gains)
+    leapfrog = [spec.name for spec in specs if spec.kind == "verlet"]
+    figure = _figure(directories, output, summaries[0], options, leapfrog) if plot else None
+    _write(output, prepared.name, header, directories, summaries, figure, table, gains)
     return Comparison(prepared.name, summaries, table, output, figure)
+
+
+def equal_cost_name(k: int) -> str:
+    """Return the row name of RATTLE at h/k, ``rattle h/k``."""
+    return f"rattle h/{k}"
+
+
+def equal_cost_divisors(summaries: Sequence[RunSummary]) -> list[int]:
+    """Return the distinct k = ⌈force evaluations per step⌉ of the energy-mode rows, in row order."""
+    divisors = []
+    for summary in summaries:
+        if summary.controller:
+            k = math.ceil(summary.force_evaluations_per_step - 1e-9)
+            if k > 1 and k not in divisors:
+                divisors.append(k)
+    return divisors
+
+
+def _run_equal_cost_rattle(
+    prepared: PreparedSystem, k: int, directory: Path, options: RunOptions
+) -> RunSummary:
+    """Run RATTLE at h/k for the same simulated time, its energy read at the same simulated times."""
+    intervals = {
+        name: getattr(options, name) * k
+        for name in ("energy_interval", "trajectory_interval", "checkpoint_interval", "velocity_interval")
+        if getattr(options, name) is not None
+    }
+    rattle_options = replace(options, timestep=options.timestep_ps / k, steps=options.steps * k, **intervals)
+    spec = parse_integrator("rattle")
+    rundir.check_run_directory(directory, rundir.run_parameters(prepared, spec, rattle_options))
+    return replace(run_nve(prepared, spec, directory, rattle_options), integrator=equal_cost_name(k))
+
+
+def equal_cost_gains(summaries: Sequence[RunSummary]) -> list[dict]:
+    """For each energy-mode row with a RATTLE h/k row: k and RMS(H − E_ref) of RATTLE h/k over the row's."""
+    by_name = {summary.integrator: summary for summary in summaries}
+    gains = []
+    for summary in summaries:
+        if not summary.controller:
+            continue
+        k = math.ceil(summary.force_evaluations_per_step - 1e-9)
+        rattle = by_name.get(equal_cost_name(k))
+        if rattle is not None:
+            gains.append(
+                {
+                    "integrator": summary.integrator,
+                    "k": k,
+                    "rattle_row": rattle.integrator,
+                    "rms_residual": summary.rms_residual,
+                    "rattle_rms_residual": rattle.rms_residual,
+                    "gain": rattle.rms_residual / summary.rms_residual,
+                }
+            )
+    return gains
+
+
+def gain_line(gain: dict) -> str:
+    """Return the table's line for one energy-mode row's gain at equal cost."""
+    return (
+        f"{gain['integrator']} at equal cost: RMS|H - E_ref| {gain['rms_residual']:.3g} kJ/mol against "
+        f"{gain['rattle_row']} ({gain['k']} RATTLE steps of h/{gain['k']} per step of h, the same force "
+        f"evaluations) {gain['rattle_rms_residual']:.3g}: {gain['gain']:.3g}x lower"
+    )
 
 
 def _check_output(output: Path, plot: bool) -> None:
@@ -148,7 +225,9 @@ def _prepare(
     return prepared
 
 
-def _figure(directories: dict[str, Path], output: Path, first: RunSummary, options: RunOptions) -> Path:
+def _figure(
+    directories: dict[str, Path], output: Path, first: RunSummary, options: RunOptions, leapfrog: list[str]
+) -> Path:
     """Plot H − E_ref of every run against time (leapfrog Verlet in its own panel); return the path."""
     from .plots import plot_energy_residuals, run_caption
 
@@ -166,7 +245,6 @@ def _figure(directories: dict[str, Path], output: Path, first: RunSummary, optio
         dof=first.degrees_of_freedom,
         energy_interval=options.energy_interval,
     )
-    leapfrog = [name for name in directories if parse_integrator(name).kind == "verlet"]
     path = output / FIGURE_FILE
     return Path(
         plot_energy_residuals(
@@ -183,6 +261,7 @@ def _write(
     summaries: list[RunSummary],
     figure: Path | None,
     table: str,
+    gains: list[dict],
 ) -> None:
     """Write ``comparison.json`` and ``table.txt``."""
     (output / COMPARISON_FILE).write_text(
@@ -192,6 +271,7 @@ def _write(
                 "header": header,
                 "runs": {name: str(directory) for name, directory in directories.items()},
                 "summaries": [summary.as_dict() for summary in summaries],
+                "equal_cost": gains,
                 "figure": str(figure) if figure else None,
             },
             indent=2,
@@ -222,11 +302,14 @@ CONTROLLER_NOTE = (
 _WRAP = 110
 
 
-def format_table(summaries: Sequence[RunSummary], header: str = "", verlet_note: bool = True) -> str:
+def format_table(
+    summaries: Sequence[RunSummary], header: str = "", verlet_note: bool = True, gains: Sequence[dict] = ()
+) -> str:
     """Format the comparison table as plain text (units in the column titles), with its notes.
 
     Drifts are printed by :func:`~openmm_alphaprk.observables.drift_text` (± standard
     error, or "not resolved"), energies with three significant digits, as in the figure.
+    ``gains`` (:func:`equal_cost_gains`) adds a line per energy-mode row.
     """
     lines = [header] if header else []
     lines.append(
@@ -250,6 +333,8 @@ def format_table(summaries: Sequence[RunSummary], header: str = "", verlet_note:
         lines += textwrap.wrap(controller_line(s.integrator, s.controller), _WRAP, subsequent_indent="  ")
     if controllers:
         lines += textwrap.wrap(CONTROLLER_NOTE, _WRAP)
+    for gain in gains:
+        lines += textwrap.wrap(gain_line(gain), _WRAP, subsequent_indent="  ")
     for s in summaries:
         if s.momentum_change:
             m = s.momentum_change
