@@ -29,7 +29,7 @@ COMMON_PLATFORMS = ("CUDA", "OpenCL", "HIP")
 
 #: Standard deviation of a potential energy against the same state in double
 #: precision, σ = a (N/1000)^0.75 kJ/mol for N atoms, by force precision. Measured on
-#: smooth-PME TIP3P boxes, 10 states each (docs/scripts/energy_noise.py; docs/platforms.md):
+#: smooth-PME TIP3P boxes, 10 states each (tools/scripts/energy_noise.py; docs/platforms.md):
 #: CUDA on an H100 against CUDA double, mixed 0.0016 / 0.014 / 0.037 and single
 #: 0.0030 / 0.023 / 0.042 kJ/mol for 2.7k / 21k / 72k atoms; the CPU platform against
 #: Reference 0.0009 / 0.0037 for 555 / 2.7k atoms; OpenCL (pocl) mixed 0.0014 / 0.0032

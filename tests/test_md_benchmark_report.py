@@ -7,9 +7,9 @@ import json
 import numpy as np
 import pytest
 
-from openmm_alphaprk.reports.markdown import replace_generated
-from openmm_alphaprk.reports.md_benchmark_analysis import compare_dynamics
-from openmm_alphaprk.reports.md_benchmark_tables import scan_markdown, scan_table
+from tools.reports.markdown import replace_generated
+from tools.reports.md_benchmark_analysis import compare_dynamics
+from tools.reports.md_benchmark_tables import scan_markdown, scan_table
 
 
 def _row(system, integrator, step, status="ok", max_abs=0.1, dof=1000.0):

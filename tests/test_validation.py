@@ -3,7 +3,7 @@
 Each test recomputes its claim on a smaller scale than the page (fewer steps or
 step sizes) and fails if the claim is false; the numbers in the comments are the
 page's (docs/validation.json). The last tests check that the page's tables are
-the ones ``python -m openmm_alphaprk.reports.validation`` renders from docs/validation.json.
+the ones ``python -m tools.reports.validation`` renders from docs/validation.json.
 Already asserted elsewhere (the page refers to them): orders 2 and 4 on the spring
 pendulum and α-RATTLE-4's α* = O(h²) there (test_reference_theory.py,
 test_order4.py), symplecticity of fixed α against one pass, momenta on small
@@ -31,7 +31,7 @@ from openmm_alphaprk.reference import (
     symplecticity_defect,
     water_cluster,
 )
-from openmm_alphaprk.reports import markdown, validation_tables
+from tools.reports import markdown, validation_tables
 
 DOCS = Path(__file__).resolve().parents[1] / "docs"
 
@@ -373,7 +373,7 @@ def test_page_tables_are_the_ones_rendered_from_the_json():
 
 @pytest.mark.slow
 def test_quick_run_of_the_script_writes_everything(tmp_path):
-    from openmm_alphaprk.reports import validation
+    from tools.reports import validation
 
     page = tmp_path / "page.md"
     page.write_text("<!-- generated: orders -->\n<!-- end generated: orders -->\n", encoding="utf-8")

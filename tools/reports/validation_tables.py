@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .markdown import markdown_table as _table
+from tools.reports.markdown import markdown_table as _table
 
 
 def _e(value: float, digits: int = 2) -> str:

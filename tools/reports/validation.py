@@ -2,8 +2,8 @@ r"""Numerical validation of the α-RATTLE family: every number and figure of doc
 
 Run from the repository root::
 
-    python -m openmm_alphaprk.reports.validation           # the full page (about 10 minutes on 2 cores)
-    python -m openmm_alphaprk.reports.validation --quick   # smaller runs, to check the report (1 minute)
+    python -m tools.reports.validation           # the full page (about 10 minutes on 2 cores)
+    python -m tools.reports.validation --quick   # smaller runs, to check the report (1 minute)
 
 It computes
 
@@ -41,15 +41,15 @@ from pathlib import Path
 
 import numpy as np
 
-from .markdown import update_page
-from .validation_convergence import convergence
-from .validation_figures import write_figures
-from .validation_openmm import long_runs, openmm_alpha_star
-from .validation_symplecticity import symplecticity
-from .validation_tables import render_tables
+from tools.reports.markdown import update_page
+from tools.reports.validation_convergence import convergence
+from tools.reports.validation_figures import write_figures
+from tools.reports.validation_openmm import long_runs, openmm_alpha_star
+from tools.reports.validation_symplecticity import symplecticity
+from tools.reports.validation_tables import render_tables
 
 DOCS = Path(__file__).resolve().parents[2] / "docs"
-COMMAND = "python -m openmm_alphaprk.reports.validation"
+COMMAND = "python -m tools.reports.validation"
 
 
 def dump_json(data: dict) -> str:

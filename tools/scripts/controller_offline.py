@@ -1,6 +1,6 @@
-"""Replay α* controllers offline on recorded D0 and S (docs/scripts/one_step_energy_record.py).
+"""Replay α* controllers offline on recorded D0 and S (tools/scripts/one_step_energy_record.py).
 
-Usage: python docs/scripts/controller_offline.py RECORD.npy NOISE TOLERANCE
+Usage: python tools/scripts/controller_offline.py RECORD.npy NOISE TOLERANCE
 
 Linear model of one α-RATTLE-4 step n: H − E_ref after it is e_n = e_{n−1} + D0_n + α_n S_n,
 with the D0_n and S_n recorded along the triple-jump trajectory (a trial's energy gets

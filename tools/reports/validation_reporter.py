@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import observables
-from ..reference.step import Array
+from openmm_alphaprk import observables
+from openmm_alphaprk.reference.step import Array
 
 
 class InvariantReporter:

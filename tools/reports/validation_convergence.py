@@ -11,7 +11,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from ..reference import (
+from openmm_alphaprk.reference import (
     alpha_rattle4_step,
     integrate,
     planar_pendulum,
@@ -19,8 +19,14 @@ from ..reference import (
     planar_pendulum_start,
     water_cluster,
 )
-from ..reference.step import Array, ConstrainedProblem
-from .validation_methods import CONVERGENCE_METHODS, alpha_statistics, fitted_order, local_orders, run_method
+from openmm_alphaprk.reference.step import Array, ConstrainedProblem
+from tools.reports.validation_methods import (
+    CONVERGENCE_METHODS,
+    alpha_statistics,
+    fitted_order,
+    local_orders,
+    run_method,
+)
 
 
 def pendulum_period_study(counts: list[int]) -> dict:

@@ -2,7 +2,7 @@ r"""Regenerate every table and figure of docs/benchmarks.md from the MD benchmar
 
 Run from the repository root::
 
-    python -m openmm_alphaprk.reports.md_benchmark --run
+    python -m tools.reports.md_benchmark --run
 
 ``--run`` first runs (or completes) the sweep ``docs/sweeps/md_benchmark.toml`` with the
 sweep runner (``alphaprk sweep``; finished cells are skipped), then analyses every run
@@ -25,11 +25,21 @@ import argparse
 import json
 import sys
 
-from .markdown import replace_generated
-from .md_benchmark_analysis import timing_table
-from .md_benchmark_figures import figures
-from .md_benchmark_results import CONFIG, JSON_OUT, PAGE, REFERENCE, ROOT, SYSTEMS, get, label, load_rows
-from .md_benchmark_tables import (
+from tools.reports.markdown import replace_generated
+from tools.reports.md_benchmark_analysis import timing_table
+from tools.reports.md_benchmark_figures import figures
+from tools.reports.md_benchmark_results import (
+    CONFIG,
+    JSON_OUT,
+    PAGE,
+    REFERENCE,
+    ROOT,
+    SYSTEMS,
+    get,
+    label,
+    load_rows,
+)
+from tools.reports.md_benchmark_tables import (
     dynamics_markdown,
     dynamics_table,
     energy_markdown,
@@ -100,7 +110,7 @@ def render_page(page: str, report: dict) -> str:
 def main(argv: list[str] | None = None) -> int:
     """Run (optionally) the sweep, then write the JSON, the figures and the page's tables."""
     args = build_parser().parse_args(argv)
-    from ..workflows.sweep import load_config, run_sweep
+    from openmm_alphaprk.workflows.sweep import load_config, run_sweep
 
     config = load_config(CONFIG)
     if args.run:

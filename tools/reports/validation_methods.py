@@ -13,8 +13,8 @@ from fractions import Fraction
 
 import numpy as np
 
-from ..reference import alpha_rattle4_step, alpha_rattle_step, energy_preserving_step
-from ..reference.step import Array, ConstrainedProblem
+from openmm_alphaprk.reference import alpha_rattle4_step, alpha_rattle_step, energy_preserving_step
+from openmm_alphaprk.reference.step import Array, ConstrainedProblem
 
 #: α of the fixed-α study (issue 6).
 ALPHAS = (0.0, 1 / 6, 1 / 3, 1 / 2, 1.0)

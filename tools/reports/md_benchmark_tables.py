@@ -12,8 +12,16 @@ from pathlib import Path
 
 import numpy as np
 
-from .md_benchmark_analysis import analyse_run, compare_dynamics
-from .md_benchmark_results import ENERGY_ROWS, LABELS, REFERENCE, STABLE_MAX_PER_DOF, get, label, number
+from tools.reports.md_benchmark_analysis import analyse_run, compare_dynamics
+from tools.reports.md_benchmark_results import (
+    ENERGY_ROWS,
+    LABELS,
+    REFERENCE,
+    STABLE_MAX_PER_DOF,
+    get,
+    label,
+    number,
+)
 
 
 def energy_table(rows, system: str, timing: dict[str, dict]) -> list[dict]:

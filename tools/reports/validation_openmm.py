@@ -11,8 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import observables
-from .validation_reporter import InvariantReporter, long_run_entry, series
+from openmm_alphaprk import observables
+from tools.reports.validation_reporter import InvariantReporter, long_run_entry, series
 
 #: Runs on ``tip3p-2nm``: name in the JSON, integrator, substeps per 2 fs. The last two cost
 #: what the energy modes cost (6 force evaluations per 2 fs), at a smaller step.
@@ -30,7 +30,7 @@ LONG_RUN_INTEGRATORS = ("rattle", "alpha=1/6", "energy", "energy4")
 
 def _box_run(workdir: Path, key: str, name: str, substeps: int, steps: int) -> dict:
     """Run one integrator of :data:`BOX_RUNS` on ``tip3p-2nm``; return its entry."""
-    from ..runs import read_controller_csv, run_nve
+    from openmm_alphaprk.runs import read_controller_csv, run_nve
 
     outdir = workdir / f"tip3p-2nm-{key.replace('/', '_').replace(' ', '').replace(',', '_')}"
     summary = run_nve(
@@ -87,7 +87,7 @@ def openmm_alpha_star(workdir: Path, steps: int) -> dict:
 
 def _driver_run(prepared, workdir: Path, platform_name: str, name: str, n_steps: int, interval: int) -> dict:
     """Run ``name`` on the water cluster through the driver with an :class:`InvariantReporter`."""
-    from ..runs import run_nve
+    from openmm_alphaprk.runs import run_nve
 
     reporter = InvariantReporter(prepared.system, prepared.state, interval)
     outdir = workdir / f"cluster-{platform_name}-{name.replace('/', '_')}"
@@ -123,7 +123,7 @@ def _tight_midpoint_run(prepared, n_steps: int, interval: int) -> dict:
     import openmm as mm
     import openmm.app as app
 
-    from .. import AlphaRattleIntegrator
+    from openmm_alphaprk import AlphaRattleIntegrator
 
     integrator = AlphaRattleIntegrator(0.002, "energy", constraint_tolerance=1e-8, midpoint_tolerance=1e-12)
     simulation = app.Simulation(
@@ -154,7 +154,7 @@ def long_runs(workdir: Path, steps: dict[str, int], interval: int) -> dict:
     A fifth run (Reference) drives the order-2 energy mode directly with the midpoint
     iterated to 1e-12 nm instead of its default 1e-7 nm.
     """
-    from ..systems import prepare_system
+    from openmm_alphaprk.systems import prepare_system
 
     prepared = prepare_system("water-cluster")
     result: dict = {

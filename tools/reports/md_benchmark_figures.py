@@ -8,9 +8,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..observables import rms
-from .md_benchmark_analysis import analyse_run
-from .md_benchmark_results import (
+from openmm_alphaprk.observables import rms
+from tools.reports.md_benchmark_analysis import analyse_run
+from tools.reports.md_benchmark_results import (
     ENERGY_ROWS,
     FIGURES,
     LABELS,
@@ -36,7 +36,7 @@ def figure_energy(rows, systems: list[str]) -> str:
     """Plot H − E_ref against time, one panel per system: RMS over 0.2 ps windows, log scale."""
     import matplotlib.pyplot as plt
 
-    from ..runs import rundir
+    from openmm_alphaprk.runs import rundir
 
     fig, axes = plt.subplots(len(systems), 1, figsize=(8, 2.8 * len(systems)), squeeze=False)
     for ax, system in zip(axes[:, 0], systems):

@@ -13,7 +13,7 @@ RATTLE has no controller to report; its rows use a reporter that reads nothing, 
 asking ``Simulation`` for a report every step costs by itself (one step per ``integrator.step``
 call and a ``getState`` after each).
 
-    python docs/scripts/reporter_cost.py [--system tip3p-2nm] [--platform CPU] [--rounds 15]
+    python tools/scripts/reporter_cost.py [--system tip3p-2nm] [--platform CPU] [--rounds 15]
 """
 
 from __future__ import annotations

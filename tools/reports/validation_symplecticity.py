@@ -6,9 +6,22 @@ from collections.abc import Callable
 
 import numpy as np
 
-from ..reference import planar_pendulum, planar_pendulum_start, symplecticity_defect, water_cluster
-from ..reference.step import Array, ConstrainedProblem
-from .validation_methods import ENERGY, ENERGY4, FD_FLOOR, Method, fitted_order, fixed, run_method
+from openmm_alphaprk.reference import (
+    planar_pendulum,
+    planar_pendulum_start,
+    symplecticity_defect,
+    water_cluster,
+)
+from openmm_alphaprk.reference.step import Array, ConstrainedProblem
+from tools.reports.validation_methods import (
+    ENERGY,
+    ENERGY4,
+    FD_FLOOR,
+    Method,
+    fitted_order,
+    fixed,
+    run_method,
+)
 
 
 def symplecticity_methods() -> list[Method]:

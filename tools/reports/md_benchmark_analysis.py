@@ -12,8 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..observables import rms
-from .md_benchmark_results import ENERGY_ROWS, label
+from openmm_alphaprk.observables import rms
+from tools.reports.md_benchmark_results import ENERGY_ROWS, label
 
 ANALYSIS_FILE = "md_benchmark_analysis.json"
 ANALYSIS_VERSION = 1
@@ -34,9 +34,9 @@ def analyse_run(directory: Path) -> dict:
         if stored.get("version") == ANALYSIS_VERSION:
             return stored
 
-    from ..analysis import Diffusion, VelocityAutocorrelation, band_summary
-    from ..analysis.structure import oxygen_rdf
-    from ..runs.rundir import open_universe
+    from openmm_alphaprk.analysis import Diffusion, VelocityAutocorrelation, band_summary
+    from openmm_alphaprk.analysis.structure import oxygen_rdf
+    from openmm_alphaprk.runs.rundir import open_universe
 
     result: dict = {"version": ANALYSIS_VERSION}
     positions = open_universe(directory)
@@ -63,7 +63,7 @@ def analyse_run(directory: Path) -> dict:
 
 def compare_dynamics(run: dict, reference: dict) -> dict:
     """Return the differences of RDF, D and spectrum of a run from the reference run."""
-    from ..analysis import spectrum_difference
+    from openmm_alphaprk.analysis import spectrum_difference
 
     r = np.asarray(run["rdf_r"])
     window = (r >= RDF_COMPARE[0]) & (r <= RDF_COMPARE[1])
@@ -104,10 +104,10 @@ def timing_table(system: str, steps: int = 30, rounds: int = 3) -> dict[str, dic
     """
     import openmm as mm
 
-    from ..benchmarks.cost import interleaved_timing
-    from ..integrators import check_context
-    from ..integrators.names import make_integrator
-    from ..systems import prepare_system
+    from openmm_alphaprk.benchmarks.cost import interleaved_timing
+    from openmm_alphaprk.integrators import check_context
+    from openmm_alphaprk.integrators.names import make_integrator
+    from openmm_alphaprk.systems import prepare_system
 
     prepared = prepare_system(system, progress=False)
     platform = mm.Platform.getPlatformByName("CPU")

@@ -1,6 +1,6 @@
 """Hunt for starts on which α-RATTLE-4's energy mode degrades on a platform; keep every start.
 
-Usage: python docs/scripts/energy_mode_start_hunt.py FIRST_SEED LAST_SEED PLATFORM[:precision] OUT_DIR
+Usage: python tools/scripts/energy_mode_start_hunt.py FIRST_SEED LAST_SEED PLATFORM[:precision] OUT_DIR
 
 For each seed: a 1.7 nm TIP3P box (PME 0.8 nm, LJ switched from 0.7 nm, Ewald 1e-5),
 500 Langevin steps on the CPU (build_water_box), its start saved as OpenMM State XML in

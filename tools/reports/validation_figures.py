@@ -10,7 +10,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from .validation_methods import FD_FLOOR
+from tools.reports.validation_methods import FD_FLOOR
 
 
 def _slope_label(label: str, order: float) -> str:

@@ -1,13 +1,13 @@
 """Record, step by step, D0 (one-step energy change of triple-jump RATTLE) and S = dH/dα of α-RATTLE-4.
 
-Usage: python docs/scripts/one_step_energy_record.py SYSTEM STEPS OUT.npy [DELTA]
+Usage: python tools/scripts/one_step_energy_record.py SYSTEM STEPS OUT.npy [DELTA]
 
 Along the α = 0 (triple-jump RATTLE) trajectory of SYSTEM (a name of `alphaprk systems`)
 from its cached start, CPU platform, 2 fs: before every step the state is copied into a
 second context whose α-RATTLE-4 has the fixed α = DELTA (default 0.02, converged
 midpoint); both take one step. Saved per step: H before the step, D0 = H(α = 0 step) −
 H before, and S = (H(α = DELTA step) − H(α = 0 step)) / DELTA. These are the numbers of
-docs/energy_mode.md, "One trial per step". docs/scripts/controller_offline.py replays
+docs/energy_mode.md, "One trial per step". tools/scripts/controller_offline.py replays
 controllers on them.
 """
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..integrators.names import label as integrator_label
+from openmm_alphaprk.integrators.names import label as integrator_label
 
 ROOT = Path(__file__).resolve().parents[2]
 CONFIG = ROOT / "docs" / "sweeps" / "md_benchmark.toml"
@@ -52,7 +52,7 @@ def load_rows(config) -> dict[tuple[str, str, float, str], dict]:
     The rows are those of the sweep table, read from the run directories, so that a
     report can be made while the sweep still runs.
     """
-    from ..workflows.sweep import cell_status
+    from openmm_alphaprk.workflows.sweep import cell_status
 
     rows = {}
     for cell in config.cells:

@@ -4,7 +4,7 @@ Run from the repository root::
 
     alphaprk bench energy --scan 2 3 4 5 --json docs/energy_benchmark.json \\
         --traces energy_traces.npz
-    python docs/scripts/energy_benchmark_figure.py energy_traces.npz docs/figures/energy_benchmark.png
+    python tools/scripts/energy_benchmark_figure.py energy_traces.npz docs/figures/energy_benchmark.png
 """
 
 from __future__ import annotations

@@ -1,0 +1,1 @@
+"""The project's own tools: generators of docs/ (reports) and research scripts (scripts); not installed."""
