@@ -1,6 +1,6 @@
 """RATTLE and α-RATTLE as OpenMM ``CustomIntegrator`` step programs.
 
-The α-RATTLE step from a consistent state (x0, v0) with F0 = F(x0) (design doc §3)::
+The α-RATTLE step from a consistent state (x0, v0) with F0 = F(x0) (Li & Wang, J. Comput. Math. 41, 2023)::
 
     x1 = x0 + h v0 + h² M⁻¹[(½−α) F0 + α F(x_m)] − M⁻¹ G(x0)ᵀ λ,   g(x1) = 0,   x_m = (x0+x1)/2
     v1 = (x1 − x0)/h + h M⁻¹[α F(x_m) + (½−α) F(x1)] − M⁻¹ G(x1)ᵀ μ,  G(x1) v1 = 0

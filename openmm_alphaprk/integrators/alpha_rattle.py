@@ -42,12 +42,12 @@ class AlphaRattleIntegrator(EnergyModeProgram):
     (½−α, 2α, ½−α) at (0, ½, 1); α = 0 is RATTLE. For every fixed α the map is
     symplectic on the constraint manifold, symmetric, keeps the constraints and
     quadratic invariants (linear and angular momentum), and is of order 2
-    (design doc §3).
+    (Li & Wang, J. Comput. Math. 41, 2023).
 
     With ``order=4`` the step is α-RATTLE-4, a triple-jump composition with α on the
     middle sub-step only. With ``alpha="energy"`` α is chosen anew every step so that the total energy
-    after the step equals E_ref, the energy of the starting state (design doc §4;
-    see :mod:`openmm_alphaprk.integrators.controller`). Each step is still a member of the
+    after the step equals E_ref, the energy of the starting state
+    (see :mod:`openmm_alphaprk.integrators.controller`). Each step is still a member of the
     family, so constraints and linear momentum are kept exactly and angular momentum
     to the midpoint tolerance; symplecticity is given up.
 
@@ -104,7 +104,7 @@ class AlphaRattleIntegrator(EnergyModeProgram):
     order
         2: the α-RATTLE step. 4: α-RATTLE-4, the symmetric composition
         Ψ^0_{γ1 h} ∘ Ψ^α_{γ2 h} ∘ Ψ^0_{γ1 h} with γ1 = 1/(2 − 2^{1/3}),
-        γ2 = 1 − 2γ1 (design doc §8): fourth order at α = 0 (three force
+        γ2 = 1 − 2γ1: fourth order at α = 0 (three force
         evaluations per step), second order at a fixed α ≠ 0, and fourth order
         again in the energy mode, where α* = O(h²). Its sub-steps are 1.35h, −1.70h
         and 1.35h (a scan on a water box found it, like RATTLE, stable up to 5 fs,

@@ -1,7 +1,7 @@
 """The energy-preserving mode of α-RATTLE: the step programs of the α* controller.
 
 Each step chooses α so that the total energy after the step equals the reference
-energy E_ref, the energy of the state the run started from (design doc §4). The
+energy E_ref, the energy of the state the run started from. The
 controller runs entirely inside the ``CustomIntegrator`` step program, in one
 ``while`` loop; each *trial* of an α is:
 

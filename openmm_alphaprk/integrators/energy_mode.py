@@ -34,12 +34,10 @@ NON_PERIODIC_MIDPOINT_TOLERANCE = 1e-13
 class ControllerDefaults:
     """Defaults of the energy mode that depend on the order of the method.
 
-    Order 2: α* is O(1) (design doc §4). The doc's interval (−1, 3) lets the greedy
-    controller take large excursions that spoil later steps; over three 400-step
-    runs (2.2 nm smooth TIP3P box, CPU) RMS(H − E_ref) relative to RATTLE was
-    0.82/0.88/0.85 with (−1, 3), 0.25/0.50/0.37 with (−0.5, 1.5), 0.42/0.58/0.54 with
-    (0, 1) and 0.57/0.86/0.76 with (−0.25, 0.75). Order 4 (the
-    triple jump with α on the middle sub-step): α* is O(h²) (§8), a few 1e-2 for
+    Order 2: α* is O(1); a wide interval such as (−1, 3) lets the greedy controller
+    take large excursions that spoil later steps (the interval comparison is in
+    docs/energy_mode.md, "Defaults, and why"). Order 4 (the
+    triple jump with α on the middle sub-step): α* is O(h²), a few 1e-2 for
     water at 2 fs; a large excursion of α turns the step into a poor second-order
     one, so the interval and the moves are small. The midpoint tolerance can be
     looser at order 4 because a midpoint error δ changes angular momentum by

@@ -1,6 +1,6 @@
 """α-RATTLE's implicit midpoint force: its variables, the pieces that solve for it, α-RATTLE-4's sub-steps.
 
-The α-RATTLE step from a consistent state (x0, v0) with F0 = F(x0) (design doc §3)::
+The α-RATTLE step from a consistent state (x0, v0) with F0 = F(x0)::
 
     x1 = x0 + h v0 + h² M⁻¹[(½−α) F0 + α F(x_m)] − M⁻¹ G(x0)ᵀ λ,   g(x1) = 0,   x_m = (x0+x1)/2
     v1 = (x1 − x0)/h + h M⁻¹[α F(x_m) + (½−α) F(x1)] − M⁻¹ G(x1)ᵀ μ,  G(x1) v1 = 0
@@ -8,7 +8,7 @@ The α-RATTLE step from a consistent state (x0, v0) with F0 = F(x0) (design doc 
 The midpoint force is found by fixed-point iteration: the position solve (a
 :class:`~.base.StepProgram` piece) and the midpoint block (:meth:`MidpointProgram._add_midpoint_force`)
 alternate in a ``while`` loop, in the order that rules 1–3 of :mod:`~.base` require.
-α-RATTLE-4 takes the sub-steps Ψ^0_{γ1 h} ∘ Ψ^α_{γ2 h} ∘ Ψ^0_{γ1 h} (design doc §8), the
+α-RATTLE-4 takes the sub-steps Ψ^0_{γ1 h} ∘ Ψ^α_{γ2 h} ∘ Ψ^0_{γ1 h}, the
 last two in one loop; the sub-step pieces are here too.
 """
 
@@ -21,7 +21,7 @@ from ..observables import positive_int
 from .base import StepProgram
 from .triple_jump import GAMMA1, GAMMA2
 
-#: Sub-step sizes of α-RATTLE-4: Ψ^0_{γ1 h} ∘ Ψ^α_{γ2 h} ∘ Ψ^0_{γ1 h} (design doc §8).
+#: Sub-step sizes of α-RATTLE-4: Ψ^0_{γ1 h} ∘ Ψ^α_{γ2 h} ∘ Ψ^0_{γ1 h}.
 OUTER_H = f"({GAMMA1!r}*dt)"
 MIDDLE_H = f"({GAMMA2!r}*dt)"
 #: Names of global variables read by name from outside the program.

@@ -1,6 +1,6 @@
 """α-RATTLE-4 (triple-jump composition) and energy-preserving steps in NumPy.
 
-Φ_h^α = Ψ^0_{γ1 h} ∘ Ψ^α_{γ2 h} ∘ Ψ^0_{γ1 h} (design doc §8): order 4 at α = 0,
+Φ_h^α = Ψ^0_{γ1 h} ∘ Ψ^α_{γ2 h} ∘ Ψ^0_{γ1 h}: order 4 at α = 0,
 order 2 at a fixed α ≠ 0; with α* chosen per step to hold the energy the order is 4
 again and α* = O(h²).
 """

@@ -1,6 +1,6 @@
 """Ready-made constrained test problems for the NumPy reference.
 
-Analytic problems (design doc §7) are in dimensionless units; molecular problems
+Analytic problems are in dimensionless units; molecular problems
 (rigid molecules in vacuum, no cutoff, no periodic boundaries) are in OpenMM's
 units (nm, ps, amu, kJ/mol, elementary charge) and can be turned into an
 ``openmm.System`` with :func:`to_openmm_system` for step-for-step comparisons.
@@ -63,7 +63,7 @@ def spherical_pendulum(kappa: float = 0.0) -> ConstrainedProblem:
 
 
 def spherical_pendulum_start() -> tuple[Array, Array]:
-    """Return the design doc's start: H₀ = 25.8924988…, L₃ = 6.2631282….
+    """Return the standard start: H₀ = 25.8924988…, L₃ = 6.2631282….
 
     q₀ = (sin 1.3, 0, cos 1.3), p₀ = (3 cos 1.3, 6.5, −3 sin 1.3).
     """

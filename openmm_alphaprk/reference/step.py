@@ -1,7 +1,7 @@
 """The α-RATTLE step in NumPy, for small constrained systems given by callables.
 
 This is the reference the OpenMM integrator and the theory are tested against
-(design doc §3). All arrays are flat, of length n = number of degrees of freedom;
+(Li & Wang, J. Comput. Math. 41, 2023). All arrays are flat, of length n = number of degrees of freedom;
 the units are whatever the problem uses (OpenMM units for molecular problems).
 """
 
@@ -122,7 +122,7 @@ def alpha_rattle_step(
     midpoint_solver: str = "fixed-point",
     info: StepInfo | None = None,
 ) -> tuple[Array, Array, Array]:
-    """One α-RATTLE step (design doc §3).
+    """One α-RATTLE step.
 
     Parameters
     ----------

@@ -261,7 +261,7 @@ def open_universe(path: str | os.PathLike, trajectory: str = TRAJECTORY_FILE):
     """Return an MDAnalysis ``Universe`` of a run directory's ``topology.pdb`` and one of its DCD files.
 
     MDAnalysis 2.x warns (``DeprecationWarning``) on every ``DCDReader`` that from 3.0
-    on its frames will be updated in place instead of copied (MDAnalysis issue 3889);
+    on its frames will be updated in place instead of copied (MDAnalysis GitHub #3889);
     there is no other API to read DCD files. This package copies what it keeps of a frame
     (``positions`` into its own arrays), so the change does not affect it, and only that
     warning is silenced here, with the PDB reader's notes on records it does not use.
