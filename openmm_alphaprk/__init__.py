@@ -2,7 +2,7 @@
 
 from .integrators import (
     AlphaRattleIntegrator,
-    MasslessParticleError,
+    IncompatibleSystemError,
     MidpointConvergenceError,
     RattleIntegrator,
     SystemSizeError,
@@ -15,7 +15,7 @@ from .start_blowup import StartBlowUpError
 
 __all__ = [
     "AlphaRattleIntegrator",
-    "MasslessParticleError",
+    "IncompatibleSystemError",
     "MidpointConvergenceError",
     "NonSmoothForcesWarning",
     "RattleIntegrator",

@@ -7,6 +7,14 @@ import math
 import openmm.unit as unit
 
 
+class InputError(ValueError):
+    """A value the user gave is wrong; the message names it and how to fix it."""
+
+
+class InputTypeError(TypeError):
+    """A value the user gave has the wrong type or units; the message names it and how to fix it."""
+
+
 def to_float(value: object, unit_: unit.Unit, name: str, *, positive: bool = False) -> float:
     """Return ``value`` as a float in ``unit_``, checking units and finiteness.
 
@@ -32,7 +40,7 @@ def to_float(value: object, unit_: unit.Unit, name: str, *, positive: bool = Fal
     """
     if unit.is_quantity(value):
         if not value.unit.is_compatible(unit_):
-            raise TypeError(
+            raise InputTypeError(
                 f"{name} has units of {value.unit}, which cannot be converted to {unit_}; "
                 f"pass a Quantity in units compatible with {unit_} (or a plain number in {unit_})."
             )
@@ -46,7 +54,7 @@ def to_dimensionless(value: object, name: str, *, positive: bool = False) -> flo
     """Return a dimensionless number as a float, checking finiteness (and sign)."""
     if unit.is_quantity(value):
         if not value.unit.is_dimensionless():
-            raise TypeError(f"{name} must be dimensionless, got units of {value.unit}.")
+            raise InputTypeError(f"{name} must be dimensionless, got units of {value.unit}.")
         value = value.value_in_unit(unit.dimensionless)
     return _checked_float(value, name, positive, "a number", "")
 
@@ -54,13 +62,13 @@ def to_dimensionless(value: object, name: str, *, positive: bool = False) -> flo
 def _checked_float(value: object, name: str, positive: bool, expected: str, symbol: str) -> float:
     """Convert a plain value to float; reject booleans, non-numbers, non-finite and (optionally) ≤ 0."""
     if isinstance(value, bool):
-        raise TypeError(f"{name} must be {expected}, got {value!r}.")
+        raise InputTypeError(f"{name} must be {expected}, got {value!r}.")
     try:
         number = float(value)
     except (TypeError, ValueError):
-        raise TypeError(f"{name} must be {expected}, got {value!r}.") from None
+        raise InputTypeError(f"{name} must be {expected}, got {value!r}.") from None
     if not math.isfinite(number):
-        raise ValueError(f"{name} must be finite, got {number}.")
+        raise InputError(f"{name} must be finite, got {number}.")
     if positive and number <= 0.0:
-        raise ValueError(f"{name} must be positive, got {number}{symbol}.")
+        raise InputError(f"{name} must be positive, got {number}{symbol}.")
     return number

@@ -12,6 +12,8 @@ import numpy as np
 import openmm as mm
 import openmm.unit as unit
 
+from ._units import InputError
+
 #: Percentiles of α* reported by runs, benchmarks and reports (as ``p1`` … ``p99``).
 ALPHA_PERCENTILES = (1, 5, 25, 50, 75, 95, 99)
 
@@ -129,9 +131,9 @@ def fit_drift(times_ps: np.ndarray, values: np.ndarray) -> DriftFit:
     t = np.asarray(times_ps, dtype=float)
     y = np.asarray(values, dtype=float)
     if t.shape != y.shape or t.ndim != 1:
-        raise ValueError(f"times and values must be 1-d of the same length, got {t.shape} and {y.shape}.")
+        raise InputError(f"times and values must be 1-d of the same length, got {t.shape} and {y.shape}.")
     if not np.all(np.isfinite(y)):
-        raise ValueError("the energies contain NaN or infinity: the run blew up; no drift can be fitted.")
+        raise InputError("the energies contain NaN or infinity: the run blew up; no drift can be fitted.")
     n = t.size
     if n < 2:
         nan = float("nan")
@@ -214,7 +216,7 @@ def energy_drift(times_ps: np.ndarray, total_energies: np.ndarray, dof: int) -> 
     times_ps = np.asarray(times_ps, dtype=float)
     total = np.asarray(total_energies, dtype=float)
     if len(total) < 2:
-        raise ValueError("need at least two energy samples to fit a drift.")
+        raise InputError("need at least two energy samples to fit a drift.")
     residual = total - total[0]
     fit = fit_drift(times_ps, residual)
     per_dof, per_dof_error = fit.per_dof(dof)
@@ -296,5 +298,5 @@ def positive_int(value: object, name: str) -> int:
     """Validate a positive integer argument (integral floats accepted); raise ``ValueError`` naming it."""
     numeric = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
     if not numeric or not np.isfinite(value) or value != int(value) or value < 1:
-        raise ValueError(f"{name} must be a positive integer, got {value!r}.")
+        raise InputError(f"{name} must be a positive integer, got {value!r}.")
     return int(value)

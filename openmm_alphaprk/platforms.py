@@ -24,6 +24,8 @@ from __future__ import annotations
 import openmm as mm
 import openmm.unit as unit
 
+from ._units import InputError
+
 #: Platforms that run OpenMM's common CustomIntegrator implementation.
 COMMON_PLATFORMS = ("CUDA", "OpenCL", "HIP")
 
@@ -89,7 +91,7 @@ def energy_noise(n_atoms: int, precision: str) -> float:
         'single', 'mixed' or 'double' (see :func:`force_precision`).
     """
     if precision not in _NOISE_SCALE:
-        raise ValueError(f"precision must be one of {sorted(_NOISE_SCALE)}, got {precision!r}.")
+        raise InputError(f"precision must be one of {sorted(_NOISE_SCALE)}, got {precision!r}.")
     return _NOISE_SCALE[precision] * (max(n_atoms, 1) / 1000.0) ** _NOISE_EXPONENT
 
 

@@ -23,7 +23,7 @@ import warnings
 import openmm as mm
 import openmm.unit as unit
 
-from ._units import to_dimensionless, to_float
+from ._units import InputError, to_dimensionless, to_float
 
 __all__ = [
     "DEFAULT_SWITCH_WIDTH",
@@ -166,7 +166,7 @@ def make_smooth(
 def _check_switch_width(index: int, force: mm.Force, width: float) -> None:
     cutoff = _nm(force.getCutoffDistance())
     if cutoff - width <= 0:
-        raise ValueError(
+        raise InputError(
             f"{label_force(index, force)}: cutoff {cutoff:g} nm minus switch_width {width:g} nm is "
             f"{cutoff - width:g} nm, not a switching distance. Pass a switch_width below "
             f"{cutoff:g} nm (e.g. {0.1 * cutoff:g} nm), or a larger cutoff."

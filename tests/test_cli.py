@@ -475,3 +475,22 @@ def test_killed_run_resumes_to_the_uninterrupted_result(tmp_path, cache):
     parts = json.loads((tmp_path / "parts" / "summary.json").read_text(encoding="utf-8"))
     for key in ("e_ref", "drift_per_dof", "rms_residual", "max_relative_constraint_error", "momentum_change"):
         assert parts[key] == whole[key], key
+
+
+def test_input_errors_are_one_line_and_bugs_keep_their_traceback(monkeypatch, capsys):
+    """An InputError (the package's error about the user's input) is one line; a plain ValueError is a bug."""
+    from openmm_alphaprk import cli
+    from openmm_alphaprk._units import InputError
+
+    def raise_(error):
+        def command(args):
+            raise error
+
+        return command
+
+    monkeypatch.setitem(cli.COMMANDS, "systems", raise_(InputError("steps must be positive, got -1.")))
+    assert cli.main(["systems"]) == 2
+    assert capsys.readouterr().err.strip() == "alphaprk systems: error: steps must be positive, got -1."
+    monkeypatch.setitem(cli.COMMANDS, "systems", raise_(ValueError("a library bug")))
+    with pytest.raises(ValueError, match="a library bug"):
+        cli.main(["systems"])

@@ -19,7 +19,7 @@ from platform_options import configured, platform_and_properties, with_precision
 
 from openmm_alphaprk import (
     AlphaRattleIntegrator,
-    MasslessParticleError,
+    IncompatibleSystemError,
     RattleIntegrator,
 )
 from openmm_alphaprk.systems import build_water_box
@@ -269,27 +269,27 @@ def test_virtual_sites_refused_where_a_step_cannot_be_right(tip4pew_box, spec):
         AlphaRattleIntegrator(H, "energy", order=4),
     ):
         context = _context(system, integrator, spec, x0, v0)
-        with pytest.raises(MasslessParticleError, match="midpoint"):
+        with pytest.raises(IncompatibleSystemError, match="midpoint"):
             integrator.step(1)  # the step is not taken (the Context's step count still advances)
         assert np.array_equal(velocities_of(context), np.asarray(v0)) and integrator.steps_taken == 0
-        with pytest.raises(MasslessParticleError, match="midpoint"):
+        with pytest.raises(IncompatibleSystemError, match="midpoint"):
             integrator.check_context(context)  # with the platform seen: before any step
     # α = 0 runs once check_context has seen the platform, and α set later is refused before the next step
     integrator = AlphaRattleIntegrator(H, 0.0)
     context = _context(system, integrator, spec, x0, v0)
-    with pytest.raises(MasslessParticleError, match=r"call integrator\.check_context\(context\)"):
+    with pytest.raises(IncompatibleSystemError, match=r"call integrator\.check_context\(context\)"):
         integrator.step(2)  # not shown the platform: the first step is not taken
     assert np.array_equal(velocities_of(context), np.asarray(v0)) and integrator.steps_taken == 0
     integrator.check_context(context)
     integrator.step(2)
     integrator.alpha = 0.2
-    with pytest.raises(MasslessParticleError, match="alpha=0.2"):
+    with pytest.raises(IncompatibleSystemError, match="alpha=0.2"):
         integrator.step(1)
     assert integrator.steps_taken == 2
     # on the Reference platform even RATTLE cannot be right: refused before stepping
     rattle = RattleIntegrator(H)
     context = _context(system, rattle, "Reference", x0, v0)
-    with pytest.raises(MasslessParticleError, match="Reference platform"):
+    with pytest.raises(IncompatibleSystemError, match="Reference platform"):
         rattle.check_context(context)
     assert context.getStepCount() == 0
 

@@ -7,6 +7,7 @@ import openmm as mm
 from MDAnalysis.analysis.base import AnalysisBase
 from MDAnalysis.lib.distances import calc_bonds
 
+from .._units import InputError
 from ..observables import system_constraints
 
 
@@ -45,9 +46,9 @@ class ConstraintDeviation(AnalysisBase):
         self._pairs = np.asarray(pairs, dtype=np.intp).reshape(-1, 2)
         self._lengths = np.asarray(lengths, dtype=float)
         if len(self._pairs) != len(self._lengths):
-            raise ValueError(f"{len(self._pairs)} pairs but {len(self._lengths)} lengths.")
+            raise InputError(f"{len(self._pairs)} pairs but {len(self._lengths)} lengths.")
         if len(self._pairs) and self._pairs.max() >= len(self._atoms):
-            raise ValueError(
+            raise InputError(
                 f"constraint atom index {self._pairs.max()} is beyond the {len(self._atoms)} atoms of the "
                 "universe: the System and the trajectory do not match."
             )

@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 from MDAnalysis.analysis.msd import EinsteinMSD
 
+from .._units import InputError
+
 #: 1 Å²/ps in 1e-5 cm²/s (the unit diffusion coefficients of water are quoted in).
 ANGSTROM2_PER_PS_IN_1E5_CM2_PER_S = 10.0
 
@@ -66,10 +68,10 @@ class Diffusion(EinsteinMSD):
         **kwargs,
     ):
         if not 0.0 <= fit_start < fit_stop <= 1.0:
-            raise ValueError(f"need 0 <= fit_start < fit_stop <= 1, got {fit_start}, {fit_stop}.")
+            raise InputError(f"need 0 <= fit_start < fit_stop <= 1, got {fit_start}, {fit_stop}.")
         super().__init__(universe, select=select, msd_type=msd_type, fft=fft, **kwargs)
         if self.n_particles == 0:
-            raise ValueError(f"selection {select!r} matches no atoms.")
+            raise InputError(f"selection {select!r} matches no atoms.")
         self._fit = (fit_start, fit_stop)
         self._groups = max(1, min(int(error_groups), self.n_particles))
 

@@ -17,6 +17,8 @@ import numpy as np
 from MDAnalysis.analysis.base import AnalysisBase
 from scipy import fft as sp_fft
 
+from .._units import InputError
+
 #: 1 ps⁻¹ in cm⁻¹ (1 / c, with c = 0.0299792458 cm/ps).
 PS_INV_IN_CM_INV = 1.0 / 0.0299792458
 
@@ -148,19 +150,19 @@ class VelocityAutocorrelation(AnalysisBase):
     ):
         super().__init__(universe.universe.trajectory, **kwargs)
         if source not in _SOURCES:
-            raise ValueError(
+            raise InputError(
                 f"unknown source {source!r}: use 'positions' (velocities stored as positions, "
                 "e.g. velocities.dcd) or 'velocities' (a trajectory with velocities, e.g. TRR)."
             )
         if dt is not None and not dt > 0:
-            raise ValueError(f"dt must be a positive time between frames in ps, got {dt}.")
+            raise InputError(f"dt must be a positive time between frames in ps, got {dt}.")
         if max_lag is not None and not max_lag > 0:
-            raise ValueError(f"max_lag must be a positive time in ps, got {max_lag}.")
+            raise InputError(f"max_lag must be a positive time in ps, got {max_lag}.")
         if int(zero_pad) < 1:
-            raise ValueError(f"zero_pad must be a positive integer, got {zero_pad}.")
+            raise InputError(f"zero_pad must be a positive integer, got {zero_pad}.")
         self._atoms = universe.select_atoms(select)
         if len(self._atoms) == 0:
-            raise ValueError(f"selection {select!r} matches no atoms; check the atom names (e.g. 'name H*').")
+            raise InputError(f"selection {select!r} matches no atoms; check the atom names (e.g. 'name H*').")
         self._weights = None
         if mass_weighted:
             try:
@@ -168,7 +170,7 @@ class VelocityAutocorrelation(AnalysisBase):
             except AttributeError:
                 masses = np.zeros(len(self._atoms))
             if not np.all(masses > 0):
-                raise ValueError(
+                raise InputError(
                     "mass_weighted=True needs positive masses for all selected atoms; load a topology "
                     "with elements or masses (e.g. the PDB), or use mass_weighted=False."
                 )
@@ -181,7 +183,7 @@ class VelocityAutocorrelation(AnalysisBase):
     def _trajectory_dt(self) -> float:
         dt = self._dt if self._dt is not None else float(self._trajectory.dt)
         if not dt > 0:
-            raise ValueError(
+            raise InputError(
                 f"the trajectory reports a time step of {dt} ps between frames; pass dt=<ps between "
                 "frames> to VelocityAutocorrelation."
             )
@@ -192,24 +194,24 @@ class VelocityAutocorrelation(AnalysisBase):
         if self._max_lag is None:
             return min(DEFAULT_MAX_LAG, 0.5 * span)
         if self._max_lag > span * (1 + 1e-9):
-            raise ValueError(
+            raise InputError(
                 f"max_lag = {self._max_lag} ps is longer than the analysed trajectory "
                 f"({self.n_frames} frames, {span:.6g} ps); pass a shorter max_lag or more frames."
             )
         if self._max_lag < spacing * (1 - 1e-9):
-            raise ValueError(
+            raise InputError(
                 f"max_lag = {self._max_lag} ps is shorter than the time between frames ({spacing:.6g} ps)."
             )
         return self._max_lag
 
     def _prepare(self):
         if self.n_frames < 3:
-            raise ValueError(
+            raise InputError(
                 f"{self.n_frames} frame(s) to analyse; a VACF needs at least 3 (write velocities more "
                 "often or run longer)."
             )
         if self._source == "velocities" and not self._trajectory.ts.has_velocities:
-            raise ValueError(
+            raise InputError(
                 "source='velocities' but the trajectory has no velocities; for velocities stored as "
                 "positions (velocities.dcd) use source='positions'."
             )
@@ -228,7 +230,7 @@ class VelocityAutocorrelation(AnalysisBase):
     def _conclude(self):
         steps = np.diff(self.frames)
         if len(steps) == 0 or np.any(steps != steps[0]) or steps[0] <= 0:
-            raise ValueError("the analysed frames must be evenly spaced (use start/stop/step, not frames=).")
+            raise InputError("the analysed frames must be evenly spaced (use start/stop/step, not frames=).")
         spacing = self._trajectory_dt() * int(steps[0])
         max_lag = self._resolve_max_lag(spacing)
         n_lags = int(np.floor(max_lag / spacing + 1e-6)) + 1
@@ -257,7 +259,7 @@ def _band_mask(frequencies: np.ndarray, low: float | None, high: float | None) -
     lo = -np.inf if low is None else low
     hi = np.inf if high is None else high
     if lo >= hi:
-        raise ValueError(f"need low < high, got {low}, {high}.")
+        raise InputError(f"need low < high, got {low}, {high}.")
     return (frequencies >= lo) & (frequencies <= hi)
 
 
@@ -290,10 +292,10 @@ def band_summary(
     frequencies = np.asarray(frequencies, dtype=float)
     spectrum = np.asarray(spectrum, dtype=float)
     if frequencies.shape != spectrum.shape or frequencies.ndim != 1:
-        raise ValueError(f"frequencies {frequencies.shape} and spectrum {spectrum.shape} must be equal 1-D.")
+        raise InputError(f"frequencies {frequencies.shape} and spectrum {spectrum.shape} must be equal 1-D.")
     mask = _band_mask(frequencies, low, high)
     if not mask.any():
-        raise ValueError(
+        raise InputError(
             f"no frequency in the band [{low}, {high}] cm⁻¹ "
             f"(grid {frequencies[0]:.4g}–{frequencies[-1]:.4g})."
         )
@@ -346,17 +348,17 @@ def spectrum_difference(
     freq_ref, spec_ref = np.asarray(freq_ref, dtype=float), np.asarray(spec_ref, dtype=float)
     for f, s, name in ((freq, spec, "spec"), (freq_ref, spec_ref, "spec_ref")):
         if f.shape != s.shape or f.ndim != 1:
-            raise ValueError(f"{name} and its frequencies must be equal 1-D arrays ({f.shape}, {s.shape}).")
+            raise InputError(f"{name} and its frequencies must be equal 1-D arrays ({f.shape}, {s.shape}).")
     lo = max(freq[0], freq_ref[0]) if low is None else max(low, freq[0], freq_ref[0])
     hi = min(freq[-1], freq_ref[-1]) if high is None else min(high, freq[-1], freq_ref[-1])
     grid = np.union1d(freq, freq_ref)
     grid = grid[_band_mask(grid, lo, hi)]
     if len(grid) < 2:
-        raise ValueError(f"the band [{low}, {high}] cm⁻¹ holds fewer than 2 points of the two grids.")
+        raise InputError(f"the band [{low}, {high}] cm⁻¹ holds fewer than 2 points of the two grids.")
     a = np.clip(np.interp(grid, freq, spec), 0.0, None)
     b = np.clip(np.interp(grid, freq_ref, spec_ref), 0.0, None)
     w = _trapezoid_weights(grid)
     area_a, area_b = (w * a).sum(), (w * b).sum()
     if not (area_a > 0 and area_b > 0):
-        raise ValueError(f"a spectrum has no positive area in the band [{lo:.4g}, {hi:.4g}] cm⁻¹.")
+        raise InputError(f"a spectrum has no positive area in the band [{lo:.4g}, {hi:.4g}] cm⁻¹.")
     return float(0.5 * (w * np.abs(a / area_a - b / area_b)).sum())

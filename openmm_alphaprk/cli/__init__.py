@@ -17,28 +17,19 @@ from collections.abc import Sequence
 
 import openmm as mm
 
-from ..integrators.names import IncompatibleSystemError, UnknownIntegratorError
-from ..runs.rundir import RunDirectoryError
-from ..systems import DefinitionError, UnknownSystemError
+from .._units import InputError, InputTypeError
+from ..systems import UnknownSystemError
 from .commands import COMMANDS
 from .parser import build_parser
 from .quantities import QuantityError, parse_length, parse_time
 
 __all__ = ["QuantityError", "build_parser", "main", "parse_length", "parse_time"]
 
-#: Errors that are the user's to fix: reported in one line, exit status 2.
-_INPUT_ERRORS = (
-    UnknownSystemError,
-    UnknownIntegratorError,
-    IncompatibleSystemError,
-    RunDirectoryError,
-    DefinitionError,
-    QuantityError,
-    FileNotFoundError,
-    ImportError,
-    ValueError,
-    TypeError,
-)
+#: Errors that are the user's to fix: reported in one line, exit status 2. The package
+#: raises every error about the user's input as an ``InputError`` / ``InputTypeError``
+#: (named subclasses included); any other ValueError or TypeError is a bug and keeps its
+#: traceback.
+_INPUT_ERRORS = (InputError, InputTypeError, UnknownSystemError, FileNotFoundError, ImportError)
 
 
 #: What the same command does after a Ctrl-C that came while no run was stepping.

@@ -7,6 +7,7 @@ import json
 import sys
 from pathlib import Path
 
+from .._units import InputError
 from ..integrators.names import parse_integrator
 from ..observables import drift_text
 from ..runs.options import DEFAULTS, RunOptions
@@ -47,7 +48,7 @@ def cmd_systems(args) -> int:
     from ..systems import find_shipped_state, is_cached, list_systems, load_definition
 
     if args.rebuild and not args.build:
-        raise ValueError("--rebuild needs the systems to build: alphaprk systems --build NAME ... --rebuild")
+        raise InputError("--rebuild needs the systems to build: alphaprk systems --build NAME ... --rebuild")
     if args.build:
         for name in args.build:
             _print_prepared(_prepare(name, args, rebuild=args.rebuild))

@@ -5,11 +5,13 @@ from __future__ import annotations
 import argparse
 import re
 
+from .._units import InputError
+
 _TIME_UNITS = {"fs": 1e-3, "ps": 1.0, "ns": 1e3}
 _LENGTH_UNITS = {"a": 1.0, "å": 1.0, "angstrom": 1.0, "nm": 10.0}
 
 
-class QuantityError(ValueError):
+class QuantityError(InputError):
     """A command-line quantity with a missing or wrong unit."""
 
 

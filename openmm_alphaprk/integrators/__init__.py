@@ -30,7 +30,7 @@ Modules, each class building on the one before:
 
 from .alpha_rattle import AlphaRattleIntegrator
 from .base import KIND_VARIABLE, StepProgram, TimestepUnitWarning
-from .binding import MasslessParticleError, SystemSizeError, check_context
+from .binding import IncompatibleSystemError, SystemSizeError, check_context
 from .midpoint import MidpointConvergenceError
 from .rattle import RattleIntegrator
 from .restore import restore_integrator
@@ -38,7 +38,7 @@ from .restore import restore_integrator
 __all__ = [
     "KIND_VARIABLE",
     "AlphaRattleIntegrator",
-    "MasslessParticleError",
+    "IncompatibleSystemError",
     "MidpointConvergenceError",
     "RattleIntegrator",
     "StepProgram",

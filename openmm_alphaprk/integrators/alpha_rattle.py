@@ -15,7 +15,7 @@ import openmm as mm
 import openmm.unit as unit
 
 from .. import platforms
-from .._units import to_dimensionless, to_float
+from .._units import InputError, to_dimensionless, to_float
 from ..nve import warn_if_state_changing
 from ..observables import positive_int
 from ..smooth_forces import warn_if_not_smooth
@@ -247,7 +247,7 @@ class AlphaRattleIntegrator(EnergyModeProgram):
             If the midpoint iteration did not converge (|α| h²ω²/4 ≳ 1, a tolerance
             below the platform's precision, or non-finite forces or energies). The
             context is left at the start of the failed step.
-        MasslessParticleError
+        IncompatibleSystemError
             If the system has massless particles (virtual sites) and α ≠ 0, the
             energy mode, a platform that places virtual sites only at the end of a
             step (Reference, CPU), or a platform not shown to :meth:`check_context`.
@@ -306,7 +306,7 @@ class AlphaRattleIntegrator(EnergyModeProgram):
 
 def _check_order(order: object) -> None:
     if isinstance(order, bool) or order not in (2, 4):
-        raise ValueError(
+        raise InputError(
             f"order must be 2 (α-RATTLE) or 4 (α-RATTLE-4, the triple-jump composition), got {order!r}."
         )
 
@@ -314,5 +314,5 @@ def _check_order(order: object) -> None:
 def _is_energy_mode(alpha: float | str) -> bool:
     """Tell whether ``alpha`` asks for the energy mode; refuse any other string."""
     if isinstance(alpha, str) and alpha != "energy":
-        raise ValueError(f"alpha must be a number or 'energy', got {alpha!r}.")
+        raise InputError(f"alpha must be a number or 'energy', got {alpha!r}.")
     return isinstance(alpha, str)

@@ -27,6 +27,7 @@ import openmm as mm
 import openmm.unit as unit
 
 from .. import platforms, start_blowup
+from .._units import InputError
 
 #: Degrees of freedom the program moves: 3 × the particles with mass (set by the system check).
 NDOF = "ndof"
@@ -40,8 +41,13 @@ REFUSED = "refused"
 _NO_CHECK, _CHECK_REFUSING_MASSLESS, _CHECK_ALLOWING_MASSLESS = 0, 1, 2
 
 
-class MasslessParticleError(RuntimeError):
-    """Raised when a step program cannot be right for a system with massless particles."""
+class IncompatibleSystemError(InputError):
+    """Raised when an integrator cannot integrate a system: its step cannot be right for it.
+
+    The one error for "this integrator cannot run this system": particles without mass
+    (virtual sites) where the step takes a force at unconstrained positions, or on a
+    platform that does not place them inside a step.
+    """
 
 
 class SystemSizeError(RuntimeError):
@@ -107,7 +113,7 @@ class SystemCheckedProgram(mm.CustomIntegrator):
 
         Raises
         ------
-        MasslessParticleError
+        IncompatibleSystemError
             If the System has particles without mass (virtual sites) and the step
             cannot be right for them: before any step where :meth:`check_context`
             saw them, else at the call's first step, which is not taken (positions
@@ -160,12 +166,12 @@ class SystemCheckedProgram(mm.CustomIntegrator):
         ------
         ValueError
             If ``context`` runs another integrator.
-        MasslessParticleError
+        IncompatibleSystemError
             If the System has particles without mass that this integrator, as it is
             set now, cannot integrate right on this platform.
         """
         if int(context.getIntegrator().this) != int(self.this):
-            raise ValueError(
+            raise InputError(
                 f"check_context() was given a Context that runs another integrator "
                 f"({type(context.getIntegrator()).__name__}); pass the Context this {type(self).__name__} "
                 "is bound to (simulation.context)."
@@ -203,7 +209,7 @@ class SystemCheckedProgram(mm.CustomIntegrator):
         massless = self._checked.massless
         message = self._massless_refusal(len(massless), self._checked.platform)
         if message is not None:
-            raise MasslessParticleError(f"{message} (First particle without mass: index {massless[0]}.)")
+            raise IncompatibleSystemError(f"{message} (First particle without mass: index {massless[0]}.)")
 
     def _massless_refusal(self, count: int, platform: str | None) -> str | None:
         """Why ``count`` particles without mass cannot be integrated right on ``platform`` (None: unknown).
@@ -261,7 +267,7 @@ class SystemCheckedProgram(mm.CustomIntegrator):
                 f"of the first System it was bound to, so this cannot run: create a new integrator.{untaken}"
             )
         message = self._massless_refusal(particles - moved, self._platform(context))
-        raise MasslessParticleError(
+        raise IncompatibleSystemError(
             (message or f"{particles - moved} particle(s) of this System have zero mass.") + untaken
         )
 

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import openmm.unit as unit
 
 from .. import platforms
-from .._units import to_dimensionless, to_float
+from .._units import InputError, InputTypeError, to_dimensionless, to_float
 from ..observables import positive_int
 from .controller import (
     FELL_BACK,
@@ -86,7 +86,7 @@ def controller_settings(
         predict=order == 4,
     )
     if settings.slope_damping < 0:
-        raise ValueError(f"slope_damping must be >= 0 (0 turns the damping off), got {slope_damping}.")
+        raise InputError(f"slope_damping must be >= 0 (0 turns the damping off), got {slope_damping}.")
     return settings
 
 
@@ -95,11 +95,11 @@ def check_alpha_bounds(bounds: object) -> tuple[float, float]:
     try:
         low, high = bounds  # type: ignore[misc]
     except (TypeError, ValueError):
-        raise TypeError(f"alpha_bounds must be a pair (low, high), got {bounds!r}.") from None
+        raise InputTypeError(f"alpha_bounds must be a pair (low, high), got {bounds!r}.") from None
     low = to_dimensionless(low, "alpha_bounds[0]")
     high = to_dimensionless(high, "alpha_bounds[1]")
     if not low < high:
-        raise ValueError(
+        raise InputError(
             f"alpha_bounds must satisfy low < high, got ({low}, {high}); an empty or inverted "
             "interval leaves the controller nothing to choose. The defaults are "
             f"{CONTROLLER_DEFAULTS[2].alpha_bounds} (order 2) and "

@@ -33,9 +33,11 @@ from fractions import Fraction
 import openmm as mm
 import openmm.unit as unit
 
+from .._units import InputError
 from ..observables import VERLET_IS_LEAPFROG
 from ..platforms import COMMON_PLATFORMS, massless_particles
 from .alpha_rattle import AlphaRattleIntegrator
+from .binding import IncompatibleSystemError
 from .rattle import RattleIntegrator
 
 
@@ -98,12 +100,8 @@ INTEGRATOR_NAMES = ", ".join(entry.name for entry in VOCABULARY)
 INTEGRATOR_HELP = "; ".join(f"{entry.name} = {entry.help}" for entry in VOCABULARY)
 
 
-class UnknownIntegratorError(ValueError):
+class UnknownIntegratorError(InputError):
     """Raised for an integrator name that is not in :data:`VOCABULARY`."""
-
-
-class IncompatibleSystemError(ValueError):
-    """Raised when an integrator cannot integrate a system (virtual sites with a CustomIntegrator)."""
 
 
 @dataclass(frozen=True)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import openmm as mm
 
+from .._units import InputTypeError
 from .alpha_rattle import AlphaRattleIntegrator
 from .base import KIND_VARIABLE, StepProgram
 from .rattle import RattleIntegrator
@@ -44,7 +45,7 @@ def restore_integrator(integrator: mm.Integrator) -> StepProgram:
         if KIND_VARIABLE in names:
             kind = int(integrator.getGlobalVariableByName(KIND_VARIABLE))
     if kind not in _CLASSES_BY_KIND:
-        raise TypeError(
+        raise InputTypeError(
             f"{type(integrator).__name__} object was not created by openmm_alphaprk "
             f"(no global variable {KIND_VARIABLE!r} with a known value); cannot restore it."
         )

@@ -12,6 +12,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._units import InputError
+
 Array = np.ndarray
 
 
@@ -173,7 +175,7 @@ def alpha_rattle_step(
         )
     elif alpha != 0.0:
         if midpoint_solver != "fixed-point":
-            raise ValueError(f"midpoint_solver must be 'fixed-point' or 'newton', got {midpoint_solver!r}.")
+            raise InputError(f"midpoint_solver must be 'fixed-point' or 'newton', got {midpoint_solver!r}.")
         x1, f_mid = _fixed_point_midpoint(
             problem, x0, x1, positions, midpoint_tolerance, max_midpoint_iterations, one_pass, info
         )

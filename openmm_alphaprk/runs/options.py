@@ -13,7 +13,7 @@ from dataclasses import dataclass, replace
 import openmm as mm
 import openmm.unit as unit
 
-from .._units import to_dimensionless, to_float
+from .._units import InputError, to_dimensionless, to_float
 from ..observables import positive_int
 
 PRECISIONS = ("single", "mixed", "double")
@@ -117,7 +117,7 @@ class RunOptions:
         self._set("checkpoint_seconds", seconds)
         seed = self.velocity_seed
         if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int)):
-            raise ValueError(f"velocity_seed must be an integer or None, got {seed!r}.")
+            raise InputError(f"velocity_seed must be an integer or None, got {seed!r}.")
         tolerance = to_dimensionless(self.constraint_tolerance, "constraint_tolerance", positive=True)
         self._set("constraint_tolerance", tolerance)
 
@@ -158,7 +158,7 @@ class RunOptions:
         platform, properties = _platform(self.platform, self.precision)
         if self.cpu_threads is not None:
             if self.platform != "CPU":
-                raise ValueError(
+                raise InputError(
                     f"cpu_threads applies to the CPU platform only, not {self.platform}; leave it unset."
                 )
             properties["Threads"] = str(positive_int(self.cpu_threads, "cpu_threads"))
@@ -172,14 +172,14 @@ DEFAULTS = RunOptions()
 def _platform(name: str, precision: str | None) -> tuple[mm.Platform, dict]:
     names = [mm.Platform.getPlatform(i).getName() for i in range(mm.Platform.getNumPlatforms())]
     if name not in names:
-        raise ValueError(f"unknown OpenMM platform {name!r}; available here: {', '.join(names)}.")
+        raise InputError(f"unknown OpenMM platform {name!r}; available here: {', '.join(names)}.")
     platform = mm.Platform.getPlatformByName(name)
     if precision is None:
         return platform, {}
     if precision not in PRECISIONS:
-        raise ValueError(f"precision must be one of {PRECISIONS}, got {precision!r}.")
+        raise InputError(f"precision must be one of {PRECISIONS}, got {precision!r}.")
     if "Precision" not in platform.getPropertyNames():
-        raise ValueError(
+        raise InputError(
             f"platform {name} has no precision setting (Reference computes in double, CPU in single with "
             "some double accumulation); leave precision unset, or use CUDA/OpenCL."
         )

@@ -16,6 +16,7 @@ import numpy as np
 import openmm.app as app
 import openmm.unit as unit
 
+from .._units import InputError, InputTypeError
 from ..integrators import AlphaRattleIntegrator, restore_integrator
 from ..integrators.controller import (
     ALPHA,
@@ -85,7 +86,7 @@ class AlphaControllerReporter:
         self, file: str | os.PathLike | io.TextIOBase, reportInterval: int = 1, append: bool = False
     ):
         if isinstance(reportInterval, bool) or int(reportInterval) != reportInterval or reportInterval < 1:
-            raise ValueError(f"reportInterval must be a positive integer, got {reportInterval!r}.")
+            raise InputError(f"reportInterval must be a positive integer, got {reportInterval!r}.")
         self._interval = int(reportInterval)
         self._file_argument = file
         self._append = append
@@ -116,7 +117,7 @@ class AlphaControllerReporter:
         except TypeError:  # not one of this package's integrators
             integrator = simulation.integrator
         if not isinstance(integrator, AlphaRattleIntegrator) or not integrator.energy_mode:
-            raise TypeError(
+            raise InputTypeError(
                 "AlphaControllerReporter needs an AlphaRattleIntegrator in the energy mode "
                 "(alpha='energy'); use openmm.app.StateDataReporter for other integrators."
             )
@@ -154,7 +155,7 @@ class AlphaControllerReporter:
     def _checkForErrors(row: tuple) -> None:
         """Fail fast when the residual is not finite."""
         if not math.isfinite(row[3]):
-            raise ValueError(
+            raise InputError(
                 f"Energy residual is {row[3]} at step {row[0]}: the simulation has become unstable. "
                 "Reduce the timestep or check the starting structure."
             )
@@ -184,9 +185,9 @@ class AlphaControllerReporter:
             object instead of a path (the rows are not kept; read them back yourself).
         """
         if self._integrator is None:
-            raise ValueError("no report yet: run at least one step with the reporter attached.")
+            raise InputError("no report yet: run at least one step with the reporter attached.")
         if not isinstance(self._file_argument, (str, os.PathLike)):
-            raise ValueError(
+            raise InputError(
                 "this reporter writes to a file object and keeps no rows; summarize with "
                 "summarize_controller(read_controller_csv(path), totals=integrator.controller_totals())."
             )
@@ -264,7 +265,7 @@ def read_controller_csv(path: str | os.PathLike) -> np.ndarray:
     """Read a file written by :class:`AlphaControllerReporter` into an array (rows × columns)."""
     data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
     if data.shape[1] != len(COLUMNS):
-        raise ValueError(
+        raise InputError(
             f"{path} has {data.shape[1]} columns, expected {len(COLUMNS)} ({', '.join(COLUMNS)})."
         )
     return data
@@ -290,7 +291,7 @@ def summarize_controller(
     """
     rows = np.asarray(rows, dtype=float)
     if rows.ndim != 2 or rows.shape[0] == 0:
-        raise ValueError("No controller rows to summarize: run at least one step with the reporter attached.")
+        raise InputError("No controller rows to summarize: run at least one step with the reporter attached.")
     alpha, residual = rows[:, 2], rows[:, 3]
     if energy_tolerance is not None:
         within = float(np.mean(np.abs(residual) <= energy_tolerance))
@@ -344,7 +345,7 @@ class VelocityDCDReporter:
 
     def __init__(self, file: str | os.PathLike, reportInterval: int, append: bool = False):
         if isinstance(reportInterval, bool) or int(reportInterval) != reportInterval or reportInterval < 1:
-            raise ValueError(f"reportInterval must be a positive integer, got {reportInterval!r}.")
+            raise InputError(f"reportInterval must be a positive integer, got {reportInterval!r}.")
         self._path = os.fspath(file)
         self._interval = int(reportInterval)
         self._append = append
@@ -369,7 +370,7 @@ class VelocityDCDReporter:
         """Return the State's velocities in nm/ps, checked to be finite."""
         velocities = state.getVelocities(asNumpy=True).value_in_unit(unit.nanometers / unit.picoseconds)
         if not np.all(np.isfinite(velocities)):
-            raise ValueError(
+            raise InputError(
                 f"non-finite velocity at step {simulation.currentStep}: the simulation has blown up; "
                 "use a smaller step size."
             )

@@ -29,6 +29,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from .._units import InputError
+
 if TYPE_CHECKING:
     from ..integrators.names import IntegratorSpec
     from ..systems import PreparedSystem
@@ -62,7 +64,7 @@ _MAY_DIFFER = ("steps",)
 _IMPLIED = {"controller_interval": 1}
 
 
-class RunDirectoryError(ValueError):
+class RunDirectoryError(InputError):
     """Raised when an output directory holds something other than this run."""
 
 
@@ -161,7 +163,7 @@ def read_energies(path: str | os.PathLike) -> np.ndarray:
     """Rows of ``energies.csv``: step, time (ps), potential, kinetic, total (kJ/mol), temperature (K)."""
     data = np.loadtxt(path, delimiter=",", comments="#", ndmin=2)
     if data.shape[0] == 0:
-        raise ValueError(f"{path} holds no energy rows.")
+        raise InputError(f"{path} holds no energy rows.")
     return data
 
 

@@ -17,6 +17,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from .._units import InputError
+
 if sys.version_info >= (3, 11):
     import tomllib
 else:  # pragma: no cover - Python 3.10
@@ -53,7 +55,7 @@ class UnknownSystemError(KeyError):
         return str(self.args[0])
 
 
-class DefinitionError(ValueError):
+class DefinitionError(InputError):
     """Raised for a definition file with missing or invalid entries."""
 
 

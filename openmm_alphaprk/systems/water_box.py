@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import openmm.unit as unit
 
-from .._units import to_float
+from .._units import InputError, to_float
 from .cache import PreparedSystem, prepare_system
 from .definitions import parse_definition
 
@@ -105,7 +105,7 @@ def _switch_distance(switch_distance: object, cutoff: float) -> float | None:
     """Return the LJ switch distance (nm) for ``"auto"`` (cutoff − 0.1 nm), a length, or None."""
     if isinstance(switch_distance, str):
         if switch_distance != "auto":
-            raise ValueError(f"switch_distance must be a length, None or 'auto', got {switch_distance!r}.")
+            raise InputError(f"switch_distance must be a length, None or 'auto', got {switch_distance!r}.")
         return max(cutoff - 0.1, 0.5 * cutoff)
     if switch_distance is None:
         return None

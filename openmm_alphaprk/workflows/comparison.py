@@ -10,6 +10,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+from .._units import InputError
 from ..integrators.names import IntegratorSpec, check_compatible, parse_integrator
 from ..observables import VERLET_IS_LEAPFROG, drift_text
 from ..runs import RunOptions, RunSummary, run_nve, rundir
@@ -197,10 +198,10 @@ def _integrators(integrators: Sequence[str | IntegratorSpec]) -> list[Integrator
     """Parse the integrators; refuse none and repeats."""
     specs = [parse_integrator(name) for name in integrators]
     if not specs:
-        raise ValueError("give at least one integrator to compare.")
+        raise InputError("give at least one integrator to compare.")
     names = [spec.name for spec in specs]
     if len(set(names)) != len(names):
-        raise ValueError(f"integrators are repeated: {names}; give each once.")
+        raise InputError(f"integrators are repeated: {names}; give each once.")
     return specs
 
 

@@ -16,6 +16,7 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
+from ..._units import InputError
 from ...runs import rundir
 from ...runs.options import DEFAULTS, INTERVALS, NAMED_OPTIONS, OPTIONAL_INTERVALS, RunOptions
 
@@ -31,7 +32,7 @@ _RUN_DEFAULTS: dict[str, Any] = {name: getattr(DEFAULTS, name) for name in NAMED
 }
 
 
-class SweepConfigError(ValueError):
+class SweepConfigError(InputError):
     """Raised for a sweep configuration that cannot be run; the message names the entry."""
 
 
