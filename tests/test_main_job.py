@@ -1,10 +1,11 @@
 """The README's main job (``alphaprk compare``) from the shipped start state gives the README's numbers.
 
-Marked slow (about 3.5 min on 2 cores): run with ``python -m pytest -m slow tests/test_main_job.py``.
+Marked slow (about 7 min on 2 cores): run with ``python -m pytest -m slow tests/test_main_job.py``.
 The CPU platform sums forces in a thread-dependent order, so runs are not bitwise
 repeatable and the chaotic trajectories part after a few hundred steps: the README states
 its numbers to the precision checked here (RATTLE and triple jump 15 %, the energy mode
-within a factor 2, its force evaluations per step to 0.5).
+within a factor 2, its force evaluations per step to 0.5; RATTLE at h/k to 15 %, the gain
+at equal cost within a factor 2).
 """
 
 import re
@@ -26,7 +27,17 @@ def _readme_numbers() -> dict[str, float]:
     )
     assert match, "the README's main-job sentence changed: update this test with it"
     rattle, energy4, evaluations, triple_jump = map(float, match.groups())
-    return {"rattle": rattle, "energy4": energy4, "evaluations": evaluations, "alpha4=0": triple_jump}
+    equal_cost = re.search(r"and ([0-9.]+) for RATTLE at h/([0-9]+), so `energy4` is ([0-9.]+)× lower", text)
+    assert equal_cost, "the README's equal-cost sentence changed: update this test with it"
+    return {
+        "rattle": rattle,
+        "energy4": energy4,
+        "evaluations": evaluations,
+        "alpha4=0": triple_jump,
+        "rattle h/k": float(equal_cost.group(1)),
+        "k": int(equal_cost.group(2)),
+        "gain": float(equal_cost.group(3)),
+    }
 
 
 @pytest.mark.slow
@@ -39,3 +50,7 @@ def test_the_main_job_gives_the_readme_numbers(tmp_path):
     assert expected["energy4"] / 2 <= by_name["energy4"].rms_residual <= 2 * expected["energy4"]
     evaluations = by_name["energy4"].force_evaluations_per_step
     assert evaluations == pytest.approx(expected["evaluations"], abs=0.5)
+    k = expected["k"]
+    assert by_name[f"rattle h/{k}"].rms_residual == pytest.approx(expected["rattle h/k"], rel=0.15)
+    gain = by_name[f"rattle h/{k}"].rms_residual / by_name["energy4"].rms_residual
+    assert expected["gain"] / 2 <= gain <= 2 * expected["gain"]
