@@ -15,7 +15,7 @@ from openmm_alphaprk.runs import RunFailedError, RunInterrupted, run_nve, rundir
 from openmm_alphaprk.runs.rundir import RunDirectoryError
 from openmm_alphaprk.systems import UnknownSystemError
 from openmm_alphaprk.workflows import compare
-from openmm_alphaprk.workflows.comparison import format_table
+from openmm_alphaprk.workflows.comparison import format_comparison_table
 
 REFERENCE_RUN = dict(
     platform="Reference", energy_interval=2, trajectory_interval=4, checkpoint_interval=10, progress=False
@@ -407,7 +407,7 @@ def test_energy_mode_summary_uses_the_integrators_totals_over_every_step(cluster
     assert (summary.controller["steps"], summary.controller["rows"]) == (20, 4)
     totals = AlphaRattleIntegrator.controller_totals
     if summary.controller["residuals_over"] == ROWS:
-        assert "RMS |H - E_ref|" not in format_table([summary]).split("energy (energy mode)")[1]
+        assert "RMS |H - E_ref|" not in format_comparison_table([summary]).split("energy (energy mode)")[1]
     every = {"rms_residual": 0.0123, "max_abs_residual": 0.0456}
     monkeypatch.setattr(AlphaRattleIntegrator, "controller_totals", lambda self: totals(self) | every)
     summary = run_nve(
@@ -416,7 +416,7 @@ def test_energy_mode_summary_uses_the_integrators_totals_over_every_step(cluster
     c = summary.controller
     assert (c["rms_residual"], c["max_abs_residual"], c["residuals_over"]) == (0.0123, 0.0456, EVERY_STEP)
     assert "energy (energy mode), over all 20 steps: RMS |H - E_ref| 0.0123 kJ/mol, max 0.0456 kJ/mol" in (
-        " ".join(format_table([summary]).split())
+        " ".join(format_comparison_table([summary]).split())
     )
 
 

@@ -4,9 +4,8 @@ import json
 
 import pytest
 
-from openmm_alphaprk.benchmarks import energy_command as energy_benchmark
-from openmm_alphaprk.benchmarks.energy import EnergyRow, ratios_to_rattle
-from openmm_alphaprk.benchmarks.energy_command import main
+from openmm_alphaprk.benchmarks import energy as energy_benchmark
+from openmm_alphaprk.benchmarks.energy import EnergyRow, main, ratios_to_rattle
 from openmm_alphaprk.integrators.names import label
 
 RATTLE, T0, E4 = label("rattle"), label("alpha4=0"), label("energy4")

@@ -51,7 +51,7 @@ CORE = ("verlet", "rattle", "alpha=0", "alpha=1/6", "alpha=1/2")
 ALL = (*CORE, "alpha4=0", "alpha4=0.05", "energy", "energy4")
 
 
-def default_integrators(
+def cost_benchmark_integrators(
     timestep: float, names: Sequence[str] = CORE
 ) -> dict[str, Callable[[], mm.Integrator]]:
     """Return the integrators ``names`` (default: the core set) by label."""
@@ -60,11 +60,11 @@ def default_integrators(
 
 def all_integrators(timestep: float) -> dict[str, Callable[[], mm.Integrator]]:
     """Return the core set, α-RATTLE-4 (α = 0 and 0.05) and both energy modes: every program."""
-    return default_integrators(timestep, ALL)
+    return cost_benchmark_integrators(timestep, ALL)
 
 
 #: Integrator sets of ``--integrators``.
-INTEGRATOR_SETS = {"core": default_integrators, "all": all_integrators}
+INTEGRATOR_SETS = {"core": cost_benchmark_integrators, "all": all_integrators}
 
 
 def _context(
@@ -216,7 +216,7 @@ def _host_syncs(integrator: mm.Integrator) -> float:
     return 0.0
 
 
-def format_table(rows: Sequence[BenchmarkRow], header: str = "") -> str:
+def format_cost_table(rows: Sequence[BenchmarkRow], header: str = "") -> str:
     """Format benchmark rows as a plain-text table."""
     lines = [header] if header else []
     columns = (
@@ -324,7 +324,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         f"x {args.steps} steps; RMS(H-E0) over {args.energy_steps} steps (VerletIntegrator's kinetic "
         "energy is its leapfrog estimate)"
     )
-    print(format_table(rows, header))
+    print(format_cost_table(rows, header))
     if args.json:
         with open(args.json, "w", encoding="utf-8") as handle:
             json.dump({"header": header, "rows": [asdict(row) for row in rows]}, handle, indent=2)

@@ -92,7 +92,7 @@ def _print_prepared(prepared) -> None:
 def cmd_run(args) -> int:
     from ..runs import run_nve
     from ..runs.rundir import SUMMARY_FILE
-    from ..workflows.comparison import format_table, run_directory_name
+    from ..workflows.comparison import format_comparison_table, run_directory_name
 
     spec = parse_integrator(args.integrator)
     options = _run_options(args)
@@ -103,7 +103,7 @@ def cmd_run(args) -> int:
         print(json.dumps(summary.as_dict(), indent=2))
         print(f"run directory: {output}", file=sys.stderr)
         return 0
-    print(format_table([summary], _run_header(summary), verlet_note=spec.kind == "verlet"))
+    print(format_comparison_table([summary], _run_header(summary), verlet_note=spec.kind == "verlet"))
     print(f"\nrun directory: {output}, summary: {Path(output) / SUMMARY_FILE}")
     return 0
 

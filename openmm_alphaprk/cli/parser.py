@@ -13,7 +13,7 @@ from .quantities import positive
 #: ``alphaprk bench`` subcommands: the module whose ``main(argv)`` runs each.
 BENCHMARKS = {
     "cost": "openmm_alphaprk.benchmarks.cost",
-    "energy": "openmm_alphaprk.benchmarks.energy_command",
+    "energy": "openmm_alphaprk.benchmarks.energy",
 }
 
 

@@ -101,7 +101,7 @@ def compare(
             summaries.append(_run_equal_cost_rattle(prepared, k, directories[name], options))
     gains = equal_cost_gains(summaries)
     header = _header(prepared, summaries[0], options)
-    table = format_table(summaries, header, any(spec.kind == "verlet" for spec in specs), gains)
+    table = format_comparison_table(summaries, header, any(spec.kind == "verlet" for spec in specs), gains)
     leapfrog = [spec.name for spec in specs if spec.kind == "verlet"]
     figure = _figure(directories, output, summaries[0], options, leapfrog) if plot else None
     _write(output, prepared.name, header, directories, summaries, figure, table, gains)
@@ -303,7 +303,7 @@ CONTROLLER_NOTE = (
 _WRAP = 110
 
 
-def format_table(
+def format_comparison_table(
     summaries: Sequence[RunSummary], header: str = "", verlet_note: bool = True, gains: Sequence[dict] = ()
 ) -> str:
     """Format the comparison table as plain text (units in the column titles), with its notes.

@@ -36,8 +36,8 @@ from tools.reports.md_benchmark_results import (
     ROOT,
     SYSTEMS,
     get,
-    label,
     load_rows,
+    run_label,
 )
 from tools.reports.md_benchmark_tables import (
     dynamics_markdown,
@@ -62,7 +62,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def build_report(rows, no_timing: bool) -> dict:
     """Gather the numbers of every system (timing, energy, dynamics, scan) and draw the figures."""
-    report = {"energy": {}, "dynamics": {}, "scan": {}, "timing": {}, "reference": label(*REFERENCE)}
+    report = {"energy": {}, "dynamics": {}, "scan": {}, "timing": {}, "reference": run_label(*REFERENCE)}
     previous = (
         json.loads(JSON_OUT.read_text(encoding="utf-8")).get("timing", {}) if JSON_OUT.is_file() else {}
     )

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from openmm_alphaprk.observables import rms
-from tools.reports.md_benchmark_results import ENERGY_ROWS, label
+from tools.reports.md_benchmark_results import ENERGY_ROWS, run_label
 
 ANALYSIS_FILE = "md_benchmark_analysis.json"
 ANALYSIS_VERSION = 1
@@ -118,11 +118,11 @@ def timing_table(system: str, steps: int = 30, rounds: int = 3) -> dict[str, dic
         check_context(integrator, context)
         context.setState(prepared.state)
         integrator.step(2)  # program analysis, first forces
-        runs[label(integrator_name, step)] = (integrator, context, step)
+        runs[run_label(integrator_name, step)] = (integrator, context, step)
     medians = interleaved_timing(
         {name: (integrator, 1) for name, (integrator, _context, _step) in runs.items()}, steps, rounds
     )
-    baseline = medians[label("rattle", 2.0)]
+    baseline = medians[run_label("rattle", 2.0)]
     table = {}
     for name, (_integrator, _context, step) in runs.items():
         ms = medians[name]

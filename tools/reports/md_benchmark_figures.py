@@ -18,7 +18,7 @@ from tools.reports.md_benchmark_results import (
     STABLE_MAX_PER_DOF,
     SYSTEMS,
     get,
-    label,
+    run_label,
 )
 
 
@@ -50,7 +50,7 @@ def figure_energy(rows, systems: list[str]) -> str:
             n = residual.size // window * window
             block_rms = rms(residual[:n].reshape(-1, window), axis=1)
             times = energies[1 : n + 1, 1].reshape(-1, window).mean(axis=1)
-            ax.plot(times, block_rms, lw=0.9, label=label(integrator, step))
+            ax.plot(times, block_rms, lw=0.9, label=run_label(integrator, step))
         ax.set_yscale("log")
         ax.set_title(system)
         ax.set_ylabel("RMS(H − E_ref) per 0.2 ps (kJ/mol)")
@@ -105,7 +105,8 @@ def figure_dynamics(rows, systems: list[str]) -> str:
                 continue
             analysis = analyse_run(Path(row["run_dir"]))
             style = dict(lw=1.8, color="k") if (integrator, step) == REFERENCE else dict(lw=0.8)
-            axes[0, column].plot(analysis["rdf_r"], analysis["rdf_g"], label=label(integrator, step), **style)
+            name = run_label(integrator, step)
+            axes[0, column].plot(analysis["rdf_r"], analysis["rdf_g"], label=name, **style)
             if "spectrum" in analysis:
                 axes[1, column].plot(analysis["frequencies"], analysis["spectrum"], **style)
         axes[0, column].set_xlabel("r (Å)")

@@ -40,7 +40,7 @@ LABELS = {
 STABLE_MAX_PER_DOF = 0.05
 
 
-def label(integrator: str, step_fs: float) -> str:
+def run_label(integrator: str, step_fs: float) -> str:
     """Return a row label such as ``RATTLE 2/3 fs``."""
     step = "2/3" if abs(step_fs - 2 / 3) < 1e-9 else f"{step_fs:g}"
     return f"{LABELS.get(integrator, integrator)} {step} fs"

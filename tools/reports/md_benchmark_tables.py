@@ -19,8 +19,8 @@ from tools.reports.md_benchmark_results import (
     REFERENCE,
     STABLE_MAX_PER_DOF,
     get,
-    label,
     number,
+    run_label,
 )
 
 
@@ -35,7 +35,7 @@ def energy_table(rows, system: str, timing: dict[str, dict]) -> list[dict]:
         row = get(rows, system, integrator, step)
         if row is None:
             continue
-        entry = {"label": label(integrator, step), "integrator": integrator, "timestep_fs": step}
+        entry = {"label": run_label(integrator, step), "integrator": integrator, "timestep_fs": step}
         if row["status"] != "ok":
             entry["error"] = row["error"]
             out.append(entry)
@@ -76,7 +76,7 @@ def dynamics_table(rows, system: str) -> list[dict]:
         if row is None or row["status"] != "ok":
             continue
         analysis = analyse_run(Path(row["run_dir"]))
-        out.append({"label": label(integrator, step), **compare_dynamics(analysis, reference)})
+        out.append({"label": run_label(integrator, step), **compare_dynamics(analysis, reference)})
     # independent starts (seeds): the statistical spread the differences are to be read against
     for seed in ("1", "2"):
         for integrator, step in (("rattle", 0.5), ("rattle", 2.0), ("energy4", 2.0)):
@@ -84,9 +84,8 @@ def dynamics_table(rows, system: str) -> list[dict]:
             if row is None or row["status"] != "ok":
                 continue
             analysis = analyse_run(Path(row["run_dir"]))
-            out.append(
-                {"label": f"{label(integrator, step)}, seed {seed}", **compare_dynamics(analysis, reference)}
-            )
+            name = f"{run_label(integrator, step)}, seed {seed}"
+            out.append({"label": name, **compare_dynamics(analysis, reference)})
     return out
 
 

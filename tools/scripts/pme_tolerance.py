@@ -30,7 +30,7 @@ from pathlib import Path
 import openmm as mm
 
 from openmm_alphaprk import NonSmoothForcesWarning
-from openmm_alphaprk.benchmarks.energy import default_integrators, run_energy_benchmark
+from openmm_alphaprk.benchmarks.energy import energy_benchmark_integrators, run_energy_benchmark
 from openmm_alphaprk.systems import prepare_system
 from openmm_alphaprk.systems.build import build_model, create_system
 
@@ -88,7 +88,7 @@ def main(argv=None) -> int:
     for tolerance in args.tolerances:
         box = with_tolerance(prepared, tolerance)
         pme = pme_parameters(box)
-        integrators = default_integrators(0.002, args.integrators)
+        integrators = energy_benchmark_integrators(0.002, args.integrators)
         if args.cost_only:
             rows = [{"name": label, "rms_residual": float("nan")} for label in integrators]
         else:
