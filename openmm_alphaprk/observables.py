@@ -6,6 +6,7 @@ anything of the package above it (integrators, runs, workflows).
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -28,6 +29,62 @@ def total_energy(source: mm.Context | mm.State) -> float:
     """Potential + kinetic energy (kJ/mol) of a context's current state or of a State with energies."""
     state = source.getState(getEnergy=True) if isinstance(source, mm.Context) else source
     return (state.getPotentialEnergy() + state.getKineticEnergy()).value_in_unit(unit.kilojoules_per_mole)
+
+
+@dataclass
+class EnergyTrace:
+    """H − E_ref (kJ/mol) after each sample; ``blew_up_at``: the sample where the run stopped, if it did."""
+
+    residuals: np.ndarray
+    e_ref: float
+    blew_up_at: int | None = None
+    error: str | None = None
+
+
+def energy_residuals(
+    context: mm.Context,
+    integrator: mm.Integrator,
+    samples: int,
+    *,
+    steps_per_sample: int = 1,
+    e_ref: float | None = None,
+    blow_up: float | None = None,
+    each_sample: Callable[[int, float], None] | None = None,
+    progress: Callable[[range], Iterable[int]] | None = None,
+) -> EnergyTrace:
+    """Step ``integrator`` and read H − E_ref after every ``steps_per_sample`` steps.
+
+    The one per-step energy measurement of benchmarks and tests: E_ref is the context's
+    total energy before the first step unless given. With ``blow_up`` (kJ/mol) a step
+    that raises, a non-finite energy or |H − E_ref| above it ends the run at that
+    sample (``blew_up_at``; later residuals stay NaN, ``error`` names an exception);
+    without it an exception propagates. ``each_sample(i, residual)`` is called after
+    each sample; ``progress`` wraps the range of samples (e.g. ``tqdm``).
+    """
+    e_ref = total_energy(context) if e_ref is None else e_ref
+    residuals = np.full(samples, np.nan)
+    trace = EnergyTrace(residuals, e_ref)
+    for i in (progress or iter)(range(samples)):
+        if blow_up is None:
+            integrator.step(steps_per_sample)
+        else:
+            try:
+                integrator.step(steps_per_sample)
+            except Exception as error:  # a failed step is the blow-up the caller measures
+                trace.blew_up_at, trace.error = i, type(error).__name__
+                break
+        residuals[i] = total_energy(context) - e_ref
+        if each_sample is not None:
+            each_sample(i, residuals[i])
+        if blow_up is not None and not abs(residuals[i]) <= blow_up:
+            trace.blew_up_at = i
+            break
+    return trace
+
+
+def convergence_order(step_sizes: np.ndarray, errors: np.ndarray) -> float:
+    """Return the observed order of convergence: the least-squares slope of log(error) against log(h)."""
+    return float(np.polyfit(np.log(step_sizes), np.log(errors), 1)[0])
 
 
 def degrees_of_freedom(system: mm.System) -> int:

@@ -22,6 +22,7 @@ from openmm_alphaprk import (
     IncompatibleSystemError,
     RattleIntegrator,
 )
+from openmm_alphaprk.observables import energy_residuals
 from openmm_alphaprk.systems import build_water_box
 
 H = 0.002
@@ -103,11 +104,7 @@ def test_alpha_zero_is_rattle_on_the_platform(water_box, spec):
 
 
 def _residuals(context, integrator, steps, e_ref):
-    out = []
-    for _ in range(steps):
-        integrator.step(1)
-        out.append(total_energy(context) - e_ref)
-    return np.array(out)
+    return energy_residuals(context, integrator, steps, e_ref=e_ref).residuals
 
 
 @pytest.mark.parametrize("spec", with_precision("mixed"))

@@ -17,6 +17,7 @@ import pytest
 from conftest import REFERENCE, make_context, total_energy
 
 from openmm_alphaprk import AlphaRattleIntegrator, RattleIntegrator, make_smooth
+from openmm_alphaprk.observables import energy_residuals, rms
 
 CPU = mm.Platform.getPlatformByName("CPU")
 #: S̄ measured in the dead state (2,661-atom water box, order 2).
@@ -59,12 +60,8 @@ def test_residual_beyond_alpha_authority_is_reduced_not_grown(water_box):
 
 def _rms_and_max(integrator: mm.Integrator, system, positions, velocities, steps: int, platform):
     context = make_context(system, integrator, positions, velocities, platform)
-    start = total_energy(context)
-    residuals = np.empty(steps)
-    for i in range(steps):
-        integrator.step(1)
-        residuals[i] = total_energy(context) - start
-    return float(np.sqrt(np.mean(residuals**2))), float(np.abs(residuals).max())
+    residuals = energy_residuals(context, integrator, steps).residuals
+    return rms(residuals), float(np.abs(residuals).max())
 
 
 ORDER2_NOT_YET = pytest.mark.xfail(
@@ -190,12 +187,7 @@ def test_order4_energy_mode_beats_every_fixed_alpha_of_a_scan_on_solvated_villin
         context = make_context(villin.system, integrator, villin.positions, villin.velocities, CPU)
         context.setPeriodicBoxVectors(*villin.state.getPeriodicBoxVectors())
         integrator.check_context(context)
-        start = total_energy(context)
-        residuals = []
-        for _ in range(150):
-            integrator.step(1)
-            residuals.append(total_energy(context) - start)
-        return float(np.sqrt(np.mean(np.square(residuals))))
+        return rms(energy_residuals(context, integrator, 150).residuals)
 
     alphas = (0.0, 0.005, 0.01, 0.015, 0.02)
     fixed = {alpha: rms(AlphaRattleIntegrator(0.002, alpha=alpha, order=4)) for alpha in alphas}

@@ -84,3 +84,38 @@ def test_energy_drift_of_a_short_noisy_run_is_not_resolved():
     # a trace of H − E_ref starting at 0 gives the same numbers as the total energies
     assert replace(energy_drift(t, total - total[0], dof=100), e_ref=drift.e_ref) == drift
     assert fit_drift(t[:2], total[:2]).resolved is False
+
+
+def test_energy_residuals_stop_at_a_blow_up_and_propagate_errors_without_a_threshold():
+    import openmm as mm
+    import openmm.unit as unit
+
+    from openmm_alphaprk.observables import energy_residuals, total_energy
+
+    system = mm.System()
+    for _ in range(2):
+        system.addParticle(1.0)
+    bond = mm.HarmonicBondForce()
+    bond.addBond(0, 1, 0.1, 1000.0)
+    system.addForce(bond)
+    verlet = mm.VerletIntegrator(0.001)
+    context = mm.Context(system, verlet, mm.Platform.getPlatformByName("Reference"))
+    context.setPositions([[0, 0, 0], [0.12, 0, 0]] * unit.nanometers)
+    e_ref = total_energy(context)
+
+    class FailsAtThirdStep:
+        calls = 0
+
+        def step(self, n):
+            self.calls += 1
+            if self.calls == 3:
+                raise RuntimeError("NaN")
+            verlet.step(n)
+
+    trace = energy_residuals(context, FailsAtThirdStep(), 5, blow_up=1e4)
+    assert trace.e_ref == e_ref and trace.blew_up_at == 2 and trace.error == "RuntimeError"
+    assert np.isfinite(trace.residuals[:2]).all() and np.isnan(trace.residuals[2:]).all()
+    with pytest.raises(RuntimeError):
+        energy_residuals(context, FailsAtThirdStep(), 5)
+    kicked = energy_residuals(context, verlet, 4, e_ref=e_ref - 100.0, blow_up=50.0)
+    assert kicked.blew_up_at == 0 and kicked.error is None and kicked.residuals[0] > 50

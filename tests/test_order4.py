@@ -8,9 +8,10 @@ import numpy as np
 import openmm as mm
 import openmm.unit as unit
 import pytest
-from conftest import make_context, positions_of, total_energy, velocities_of
+from conftest import make_context, positions_of, velocities_of
 
 from openmm_alphaprk import AlphaRattleIntegrator, RattleIntegrator
+from openmm_alphaprk.observables import convergence_order, energy_residuals, rms
 from openmm_alphaprk.reference import (
     GAMMA1,
     GAMMA2,
@@ -30,8 +31,7 @@ COUNTS = np.array([20, 40, 80, 160])
 T_END = 2.0
 
 
-def _slope(hs, errors):
-    return np.polyfit(np.log(hs), np.log(errors), 1)[0]
+_slope = convergence_order
 
 
 @pytest.fixture(scope="module")
@@ -149,12 +149,7 @@ def _constraints(system):
 
 
 def _energy_rms(ctx, integrator, steps):
-    e0 = total_energy(ctx)
-    residuals = []
-    for _ in range(steps):
-        integrator.step(1)
-        residuals.append(total_energy(ctx) - e0)
-    return float(np.sqrt(np.mean(np.square(residuals))))
+    return rms(energy_residuals(ctx, integrator, steps).residuals)
 
 
 def test_energy_mode_on_a_water_box_is_far_below_rattle(water_box):

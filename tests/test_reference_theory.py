@@ -8,6 +8,7 @@ so that the check can fail.
 import numpy as np
 import pytest
 
+from openmm_alphaprk.observables import convergence_order
 from openmm_alphaprk.reference import (
     alpha_rattle_step,
     angular_momentum,
@@ -36,8 +37,7 @@ def test_pendulum_periods_and_spherical_pendulum_values_match_the_design_doc():
     assert x[0] * v[1] - x[1] * v[0] == pytest.approx(6.263128205211754, rel=1e-14)
 
 
-def _slope(hs, errors):
-    return np.polyfit(np.log(hs), np.log(errors), 1)[0]
+_slope = convergence_order
 
 
 def test_order_two_at_the_exact_pendulum_period():

@@ -20,6 +20,7 @@ import pytest
 from conftest import positions_of, total_energy, velocities_of
 
 from openmm_alphaprk import AlphaRattleIntegrator, RattleIntegrator
+from openmm_alphaprk.observables import convergence_order
 from openmm_alphaprk.reference import (
     alpha_rattle4_step,
     alpha_rattle_step,
@@ -36,8 +37,7 @@ from tools.reports import markdown, validation_tables
 DOCS = Path(__file__).resolve().parents[1] / "docs"
 
 
-def _slope(hs, errors):
-    return float(np.polyfit(np.log(hs), np.log(errors), 1)[0])
+_slope = convergence_order
 
 
 # ------------------------------------------------------------ plain pendulum (κ = 0)

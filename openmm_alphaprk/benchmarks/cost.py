@@ -23,7 +23,7 @@ import openmm as mm
 
 from ..integrators import StepProgram, check_context
 from ..integrators.names import label, make_integrator
-from ..observables import rms, total_energy
+from ..observables import energy_residuals, rms
 from ..systems import PreparedSystem, build_water_box
 
 
@@ -194,12 +194,7 @@ def _timed_rows(runs: dict, steps: int, rounds: int, progress: bool) -> list[Ben
 def _energy_rms(box: PreparedSystem, integrator: mm.Integrator, context_args: tuple, steps: int) -> float:
     """RMS of H − E0 (kJ/mol) over ``steps`` steps, the energy read after every step."""
     context = _context(box, integrator, *context_args)
-    e0 = total_energy(context)
-    residuals = []
-    for _ in range(steps):
-        integrator.step(1)
-        residuals.append(total_energy(context) - e0)
-    return rms(residuals)
+    return rms(energy_residuals(context, integrator, steps).residuals)
 
 
 def _force_evaluations(integrator: mm.Integrator) -> int | None:

@@ -31,7 +31,14 @@ import openmm.unit as unit
 from tqdm import tqdm
 
 from ..integrators.names import label, make_integrator
-from ..observables import alpha_percentiles, degrees_of_freedom, drift_text, fit_drift, rms, total_energy
+from ..observables import (
+    alpha_percentiles,
+    degrees_of_freedom,
+    drift_text,
+    energy_residuals,
+    fit_drift,
+    rms,
+)
 from ..systems import PreparedSystem, build_water_box, list_systems, prepare_system
 from .cost import _context, add_box_arguments, build_platform, interleaved_timing, platform_properties
 
@@ -108,23 +115,24 @@ def _run_one(
     integrator = spec.make()
     context = _context(box, integrator, plat, properties=properties)
     step_ps = integrator.getStepSize().value_in_unit(unit.picoseconds) * spec.substeps * every
-    e_ref = total_energy(context)
-    residuals = np.full(samples, np.nan)
     alphas = np.full(samples, np.nan)
-    blew_up = None
     energy_mode = getattr(integrator, "energy_mode", False)
-    for i in tqdm(range(samples), desc=name, disable=not progress, mininterval=5.0, file=sys.stderr):
-        try:
-            integrator.step(spec.substeps * every)
-        except Exception:  # a failed step is the blow-up we report, not a crash of the benchmark
-            blew_up = i * every
-            break
-        residuals[i] = total_energy(context) - e_ref
+
+    def record_alpha(i: int, residual: float) -> None:
         if energy_mode:
             alphas[i] = integrator.alpha
-        if not np.isfinite(residuals[i]) or abs(residuals[i]) > BLOW_UP_ENERGY:
-            blew_up = i * every
-            break
+
+    trace = energy_residuals(
+        context,
+        integrator,
+        samples,
+        steps_per_sample=spec.substeps * every,
+        blow_up=BLOW_UP_ENERGY,
+        each_sample=record_alpha,
+        progress=partial(tqdm, desc=name, disable=not progress, mininterval=5.0, file=sys.stderr),
+    )
+    residuals = trace.residuals
+    blew_up = None if trace.blew_up_at is None else trace.blew_up_at * every
     done = np.isfinite(residuals)
     times = (np.arange(samples) + 1) * step_ps
     drift, drift_error = fit_drift(times[done], residuals[done]).per_dof(dof)
@@ -275,20 +283,14 @@ def largest_stable_step(
     for h_fs in sorted(steps_fs):
         integrator = make(h_fs / 1000.0)
         context = _context(box, integrator, plat, properties=properties)
-        e_ref = total_energy(context)
         n = int(round(time_ps / (h_fs / 1000.0)))
-        worst, failure = 0.0, None
-        for _ in range(n):
-            try:
-                integrator.step(1)
-            except Exception as error:  # the failure is the measurement
-                failure = f"failed: {type(error).__name__}"
-                break
-            residual = total_energy(context) - e_ref
-            if not np.isfinite(residual) or abs(residual) > BLOW_UP_ENERGY:
-                failure = f"blew up (|H - E_ref| = {abs(residual):.3g} kJ/mol)"
-                break
-            worst = max(worst, abs(residual))
+        trace = energy_residuals(context, integrator, n, blow_up=BLOW_UP_ENERGY)
+        failure = None
+        if trace.error is not None:
+            failure = f"failed: {trace.error}"
+        elif trace.blew_up_at is not None:
+            failure = f"blew up (|H - E_ref| = {abs(trace.residuals[trace.blew_up_at]):.3g} kJ/mol)"
+        worst = float(np.nanmax(np.abs(trace.residuals))) if not failure else 0.0
         del context
         if failure:
             outcomes[h_fs] = failure

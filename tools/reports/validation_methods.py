@@ -124,11 +124,6 @@ def run_method(
     return x, v, alphas, energies
 
 
-def fitted_order(hs: Array, errors: Array) -> float:
-    """Return the least-squares slope of log(error) against log(h)."""
-    return float(np.polyfit(np.log(hs), np.log(errors), 1)[0])
-
-
 def local_orders(errors: Array) -> list[float]:
     """Return log2 of the error ratio per halving of h (h listed from large to small)."""
     errors = np.asarray(errors)
