@@ -6,6 +6,7 @@ anything of the package above it (integrators, runs, workflows).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass
 
@@ -80,6 +81,11 @@ def energy_residuals(
             trace.blew_up_at = i
             break
     return trace
+
+
+def equal_cost_divisor(force_evaluations_per_step: float) -> int:
+    """Return k of "RATTLE at h/k costs the same": the force evaluations per step, rounded up."""
+    return max(1, math.ceil(force_evaluations_per_step - 1e-9))
 
 
 def convergence_order(step_sizes: np.ndarray, errors: np.ndarray) -> float:

@@ -36,6 +36,7 @@ from ..observables import (
     degrees_of_freedom,
     drift_text,
     energy_residuals,
+    equal_cost_divisor,
     fit_drift,
     rms,
 )
@@ -194,7 +195,7 @@ def run_energy_benchmark(
         over the samples).
     equal_cost
         If the row :data:`EQUAL_COST_REFERENCE` is present, add "RATTLE h/k" with k its
-        measured force evaluations per step, rounded.
+        measured force evaluations per step, rounded up.
     timing_steps, timing_rounds
         The interleaved timing rounds (no energy read-out) for the ms/step column.
     progress
@@ -234,7 +235,7 @@ def _run_rows(box: PreparedSystem, integrators: dict, equal_cost: bool, run: dic
         traces[name] = residuals
         runs[name] = integrator, context, spec.substeps
         if equal_cost and name == EQUAL_COST_REFERENCE and row.blew_up_at_step is None:
-            k = max(1, int(round(row.force_evaluations_per_step)))
+            k = equal_cost_divisor(row.force_evaluations_per_step)
             timestep = integrator.getStepSize().value_in_unit(unit.picoseconds)
             equal_name = equal_cost_label(k)
             integrators[equal_name] = equal_cost_rattle(timestep, k)

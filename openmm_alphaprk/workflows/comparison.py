@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import math
 import os
 import textwrap
 from collections.abc import Sequence
@@ -12,7 +11,7 @@ from pathlib import Path
 
 from .._units import InputError
 from ..integrators.names import IntegratorSpec, check_compatible, parse_integrator
-from ..observables import VERLET_IS_LEAPFROG, drift_text
+from ..observables import VERLET_IS_LEAPFROG, drift_text, equal_cost_divisor
 from ..runs import RunOptions, RunSummary, run_nve, rundir
 from ..runs.reporters import EVERY_STEP
 from ..systems import PreparedSystem, load_definition, prepare_system
@@ -118,7 +117,7 @@ def equal_cost_divisors(summaries: Sequence[RunSummary]) -> list[int]:
     divisors = []
     for summary in summaries:
         if summary.controller:
-            k = math.ceil(summary.force_evaluations_per_step - 1e-9)
+            k = equal_cost_divisor(summary.force_evaluations_per_step)
             if k > 1 and k not in divisors:
                 divisors.append(k)
     return divisors
@@ -146,7 +145,7 @@ def equal_cost_gains(summaries: Sequence[RunSummary]) -> list[dict]:
     for summary in summaries:
         if not summary.controller:
             continue
-        k = math.ceil(summary.force_evaluations_per_step - 1e-9)
+        k = equal_cost_divisor(summary.force_evaluations_per_step)
         rattle = by_name.get(equal_cost_name(k))
         if rattle is not None:
             gains.append(
