@@ -1,6 +1,7 @@
 """The energy benchmark runs the package's systems in one run and reports ratios against RATTLE."""
 
 import json
+import math
 
 import pytest
 
@@ -16,13 +17,14 @@ def _row(name: str, rms: float, evals: float) -> EnergyRow:
 
 
 def test_ratios_against_rattle_at_the_same_step_and_at_equal_cost():
-    rows = [_row(RATTLE, 1.0, 1), _row(E4, 0.02, 7.2), _row(f"{RATTLE} h/7", 0.05, 7)]
+    # 7.2 evaluations per step: RATTLE at h/8 is the equal-cost row (k rounded up)
+    rows = [_row(RATTLE, 1.0, 1), _row(E4, 0.02, 7.2), _row(f"{RATTLE} h/8", 0.05, 8)]
     rows.append(_row(T0, 0.1, 3))
     ratios = ratios_to_rattle(rows)
     same_step_and_cost = {key: ratios[E4][key] for key in ("rms_vs_rattle", "rms_vs_rattle_equal_cost")}
     assert same_step_and_cost == pytest.approx({"rms_vs_rattle": 50.0, "rms_vs_rattle_equal_cost": 2.5})
     assert ratios[T0] == pytest.approx({"rms_vs_rattle": 10.0})  # 3 evaluations: no equal-cost row
-    assert RATTLE not in ratios and f"{RATTLE} h/7" not in ratios
+    assert RATTLE not in ratios and f"{RATTLE} h/8" not in ratios
 
 
 def test_a_package_system_runs_with_the_ratios_in_table_and_json(tmp_path, capsys, monkeypatch):
@@ -34,7 +36,7 @@ def test_a_package_system_runs_with_the_ratios_in_table_and_json(tmp_path, capsy
     assert "system water-cluster" in printed and "at equal cost" in printed
     result = json.loads(out.read_text(encoding="utf-8"))["water-cluster"]
     rows = {row["name"]: row for row in result["rows"]}
-    k = round(rows[E4]["force_evaluations_per_step"])
+    k = math.ceil(rows[E4]["force_evaluations_per_step"])  # rounded up: RATTLE at h/k costs no less
     assert list(rows) == [RATTLE, E4, f"{RATTLE} h/{k}"]
     assert all(row["steps"] == 5 for row in rows.values())
     ratio = result["ratios"][E4]

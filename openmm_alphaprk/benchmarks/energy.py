@@ -323,7 +323,7 @@ def ratios_to_rattle(rows: Sequence[EnergyRow]) -> dict[str, dict[str, float | s
     ``rms_vs_rattle``: RATTLE's RMS / the row's (how many times lower the row is than
     RATTLE at the same step). ``rms_vs_rattle_equal_cost``: the equal-cost RATTLE row's
     RMS (RATTLE at h/k, k the force evaluations per step of :data:`EQUAL_COST_REFERENCE`)
-    / the row's, given for the rows whose evaluations per step round to that k.
+    / the row's, given for the rows whose evaluations per step round up to that k.
     For the energy-mode rows also ``rms_vs_alpha4_0`` (triple-jump RATTLE's RMS / the
     row's) and ``rms_vs_best_fixed_alpha`` with ``best_fixed_alpha`` (the label of the
     fixed-α row with the lowest RMS), where those rows ran; a ratio below 1 means the
@@ -340,7 +340,7 @@ def ratios_to_rattle(rows: Sequence[EnergyRow]) -> dict[str, dict[str, float | s
         if rattle is None or row is rattle or row is equal or not row.rms_residual > 0:
             continue
         entry: dict[str, float | str] = {"rms_vs_rattle": rattle.rms_residual / row.rms_residual}
-        same_cost = equal is not None and round(row.force_evaluations_per_step) == round(
+        same_cost = equal is not None and equal_cost_divisor(row.force_evaluations_per_step) == round(
             equal.force_evaluations_per_step
         )
         if same_cost:
