@@ -183,13 +183,13 @@ def test_order4_energy_mode_beats_every_fixed_alpha_of_a_scan_on_solvated_villin
 
     villin = prepare_system("villin")
 
-    def rms(integrator: AlphaRattleIntegrator) -> float:
+    def energy_rms(integrator: AlphaRattleIntegrator) -> float:
         context = make_context(villin.system, integrator, villin.positions, villin.velocities, CPU)
         context.setPeriodicBoxVectors(*villin.state.getPeriodicBoxVectors())
         integrator.check_context(context)
         return rms(energy_residuals(context, integrator, 150).residuals)
 
     alphas = (0.0, 0.005, 0.01, 0.015, 0.02)
-    fixed = {alpha: rms(AlphaRattleIntegrator(0.002, alpha=alpha, order=4)) for alpha in alphas}
-    energy_mode = rms(AlphaRattleIntegrator(0.002, alpha="energy", order=4))
+    fixed = {alpha: energy_rms(AlphaRattleIntegrator(0.002, alpha=alpha, order=4)) for alpha in alphas}
+    energy_mode = energy_rms(AlphaRattleIntegrator(0.002, alpha="energy", order=4))
     assert energy_mode < min(fixed.values()), (energy_mode, fixed)
