@@ -455,6 +455,35 @@ def test_compare_runs_rattle_at_h_over_k_and_states_the_gain_at_equal_cost(clust
     assert again.summaries == result.summaries
 
 
+def test_an_interrupted_comparison_resumes_and_a_foreign_folder_is_refused(cluster, tmp_path):
+    """A comparison stopped before comparison.json was written resumes in the same folder."""
+    output = tmp_path / "cmp"
+    first = compare(cluster, ["rattle", "energy"], output, steps=8, plot=False, **REFERENCE_RUN)
+    # what an interruption during the h/k run leaves: the listed runs, an h/k folder, no comparison files
+    (output / "comparison.json").unlink()
+    (output / "table.txt").unlink()
+    (hk,) = [path for path in output.iterdir() if path.name.startswith("rattle_h")]
+    for path in hk.iterdir():
+        path.unlink()
+    again = compare(cluster, ["rattle", "energy"], output, steps=8, plot=False, **REFERENCE_RUN)
+    assert again.summaries[:2] == first.summaries[:2]  # the finished runs are read back, not rerun
+    timing = {"wall_seconds", "ns_per_day"}
+    rerun, before = (
+        {key: value for key, value in summary.as_dict().items() if key not in timing}
+        for summary in (again.summaries[2], first.summaries[2])
+    )
+    assert rerun == before  # the h/k run, rerun from its start, reaches the same numbers
+    assert (output / "comparison.json").is_file()
+    foreign = tmp_path / "foreign"
+    (foreign / "rattle").mkdir(parents=True)
+    (foreign / "rattle" / "notes.txt").write_text("not a run", encoding="utf-8")
+    with pytest.raises(RunDirectoryError, match="not a comparison directory"):
+        compare(cluster, ["rattle"], foreign, steps=8, plot=False, **REFERENCE_RUN)
+    (tmp_path / "stray.txt").write_text("x", encoding="utf-8")
+    with pytest.raises(RunDirectoryError, match="not a comparison directory"):
+        compare(cluster, ["rattle"], tmp_path, steps=8, plot=False, **REFERENCE_RUN)
+
+
 def test_compare_without_equal_cost_runs_only_the_listed_integrators(cluster, tmp_path):
     result = compare(
         cluster, ["rattle", "energy4"], tmp_path, steps=6, plot=False, equal_cost=False, **REFERENCE_RUN

@@ -171,16 +171,33 @@ def gain_line(gain: dict) -> str:
 
 
 def _check_output(output: Path, plot: bool) -> None:
-    """Refuse a folder that holds something else than a comparison; with ``plot``, check for matplotlib."""
-    if output.exists() and any(output.iterdir()) and not (output / COMPARISON_FILE).is_file():
+    """Refuse a folder that holds something else than a comparison; with ``plot``, check for matplotlib.
+
+    A comparison folder is one with ``comparison.json``, or one that an interrupted comparison
+    left: nothing in it but run directories (each empty or holding its ``run.json``).
+    """
+    if output.exists() and not _is_comparison_folder(output):
         raise rundir.RunDirectoryError(
-            f"output directory {output} is not empty and holds no {COMPARISON_FILE}: it is not a comparison "
-            "directory. Choose a new or empty directory."
+            f"output directory {output} is not empty and holds neither {COMPARISON_FILE} nor only the run "
+            "directories of an interrupted comparison: it is not a comparison directory. Choose a new or "
+            "empty directory."
         )
     if plot:
         from .plots import pyplot
 
         pyplot()  # fail now, not after the runs, if matplotlib is missing
+
+
+def _is_comparison_folder(output: Path) -> bool:
+    """Whether ``output`` is empty, a finished comparison, or the run directories of an interrupted one."""
+    if (output / COMPARISON_FILE).is_file():
+        return True
+    for entry in output.iterdir():
+        if not entry.is_dir():
+            return False
+        if any(entry.iterdir()) and not (entry / rundir.PARAMETERS_FILE).is_file():
+            return False
+    return True
 
 
 def _header(prepared: PreparedSystem, first: RunSummary, options: RunOptions) -> str:
