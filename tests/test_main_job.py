@@ -8,6 +8,7 @@ within a factor 2, its force evaluations per step to 0.5; RATTLE at h/k to 15 %,
 at equal cost within a factor 2).
 """
 
+import math
 import re
 from pathlib import Path
 
@@ -54,3 +55,11 @@ def test_the_main_job_gives_the_readme_numbers(tmp_path):
     assert by_name[f"rattle h/{k}"].rms_residual == pytest.approx(expected["rattle h/k"], rel=0.15)
     gain = by_name[f"rattle h/{k}"].rms_residual / by_name["energy4"].rms_residual
     assert expected["gain"] / 2 <= gain <= 2 * expected["gain"]
+
+
+def test_the_readme_main_job_sentence_is_self_consistent():
+    """k is the energy mode's evaluations per step rounded up, the gain the ratio of the two RMS."""
+    numbers = _readme_numbers()
+    assert numbers["k"] == math.ceil(numbers["evaluations"])
+    assert numbers["gain"] == pytest.approx(numbers["rattle h/k"] / numbers["energy4"], rel=0.05)
+    assert numbers["energy4"] < numbers["alpha4=0"] < numbers["rattle"]
