@@ -131,6 +131,51 @@ def test_energy_modes_keep_one_reference_energy_across_reordering(water_box, spe
         assert integrator.controller_totals()["reference_resets"] == 2
 
 
+def _step_by_step(system, spec, positions, velocities, steps):
+    """Run the order-4 energy mode one step at a time: positions, total energy, α and trials per step."""
+    integrator = AlphaRattleIntegrator(H, "energy", order=4)
+    context = _context(system, integrator, spec, positions, velocities)
+    record = {"x": [], "energy": [], "alpha": [], "trials": []}
+    for _ in range(steps):
+        integrator.step(1)
+        record["x"].append(positions_of(context))
+        record["energy"].append(total_energy(context))
+        record["alpha"].append(integrator.alpha)
+        record["trials"].append(integrator.trials)
+    return {key: np.array(values) for key, values in record.items()}
+
+
+@pytest.mark.parametrize("spec", with_precision("mixed"))
+def test_energy_mode_runs_from_one_start_part_only_at_round_off(water_box, spec):
+    """No host read of a sum or global before its kernel has finished.
+
+    The platform's potential energy is not bitwise repeatable (measured on pocl: 1 ulp of
+    the total energy at identical positions, now and then); the energy mode feeds the
+    energy into α, so two runs from one start may part, and the chaotic dynamics then
+    amplify the difference. A stale read would make them part by far more than round-off
+    at the first step where they differ: a different α or trial count, or a position
+    change of the size of a step's.
+    """
+    steps = 40
+    first, second = (
+        _step_by_step(water_box.system, spec, water_box.positions, water_box.velocities, steps)
+        for _ in range(2)
+    )
+    differs = (
+        (np.abs(first["x"] - second["x"]).max(axis=(1, 2)) > 0)
+        | (first["energy"] != second["energy"])
+        | (first["alpha"] != second["alpha"])
+        | (first["trials"] != second["trials"])
+    )
+    if not differs.any():
+        return  # bitwise the same run
+    step = int(np.argmax(differs))
+    assert first["trials"][step] == second["trials"][step], f"step {step + 1}"
+    assert np.abs(first["x"][step] - second["x"][step]).max() < 1e-12, f"step {step + 1}"
+    assert abs(first["energy"][step] - second["energy"][step]) < 1e-13 * abs(first["energy"][step])
+    assert abs(first["alpha"][step] - second["alpha"][step]) < 1e-9
+
+
 @pytest.mark.parametrize("spec", configured())
 def test_programs_are_small_and_start_on_the_platform(water_box, spec):
     for name, make in INTEGRATORS.items():
