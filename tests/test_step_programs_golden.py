@@ -1,0 +1,66 @@
+"""Every step program, computation for computation, against a stored listing.
+
+The listings in ``tests/golden/step_programs.txt`` were written by this test; a change
+to a program (a reordered piece, a renamed variable, a changed default) fails here
+until the listing is written again on purpose::
+
+    ALPHAPRK_UPDATE_GOLDEN=1 pytest tests/test_step_programs_golden.py
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import openmm as mm
+
+from openmm_alphaprk import AlphaRattleIntegrator, RattleIntegrator
+
+GOLDEN = Path(__file__).parent / "golden" / "step_programs.txt"
+
+INTEGRATORS = {
+    "RattleIntegrator(0.002)": lambda: RattleIntegrator(0.002),
+    "AlphaRattleIntegrator(0.002, alpha=0)": lambda: AlphaRattleIntegrator(0.002, alpha=0.0),
+    "AlphaRattleIntegrator(0.002, alpha=0.1)": lambda: AlphaRattleIntegrator(0.002, alpha=0.1),
+    "AlphaRattleIntegrator(0.002, alpha=0, order=4)": lambda: AlphaRattleIntegrator(
+        0.002, alpha=0.0, order=4
+    ),
+    "AlphaRattleIntegrator(0.002, alpha=0.01, order=4)": lambda: AlphaRattleIntegrator(
+        0.002, alpha=0.01, order=4
+    ),
+    "AlphaRattleIntegrator(0.002, alpha='energy')": lambda: AlphaRattleIntegrator(0.002, alpha="energy"),
+    "AlphaRattleIntegrator(0.002, alpha='energy', order=4)": lambda: AlphaRattleIntegrator(
+        0.002, alpha="energy", order=4
+    ),
+}
+
+
+def describe(integrator: mm.CustomIntegrator) -> str:
+    """The program listing, then every global with its value and every per-DOF variable."""
+    globals_ = [
+        f"global {integrator.getGlobalVariableName(i)} = {integrator.getGlobalVariable(i)!r}"
+        for i in range(integrator.getNumGlobalVariables())
+    ]
+    per_dof = [
+        f"per-dof {integrator.getPerDofVariableName(i)}" for i in range(integrator.getNumPerDofVariables())
+    ]
+    settings = [
+        f"step size {integrator.getStepSize()!r}",
+        f"constraint tolerance {integrator.getConstraintTolerance()!r}",
+    ]
+    return "\n".join([integrator.program_listing(), *globals_, *per_dof, *settings])
+
+
+def all_descriptions() -> str:
+    return "".join(f"=== {name}\n{describe(make())}\n" for name, make in INTEGRATORS.items())
+
+
+def test_every_step_program_is_the_stored_one():
+    text = all_descriptions()
+    if os.environ.get("ALPHAPRK_UPDATE_GOLDEN"):
+        GOLDEN.parent.mkdir(exist_ok=True)
+        GOLDEN.write_text(text)
+    stored = GOLDEN.read_text()
+    for name, block in zip(INTEGRATORS, stored.split("=== ")[1:], strict=True):
+        assert block == f"{name}\n{describe(INTEGRATORS[name]())}\n", f"the step program of {name} changed"
+    assert text == stored
