@@ -1,6 +1,7 @@
 """α-RATTLE: energy- and invariant-preserving constrained integrators for OpenMM."""
 
 from .integrators import (
+    AlphaRattleEnergyIntegrator,
     AlphaRattleIntegrator,
     IncompatibleSystemError,
     MidpointConvergenceError,
@@ -14,6 +15,7 @@ from .smooth_forces import NonSmoothForcesWarning, make_smooth, smoothness_probl
 from .start_blowup import StartBlowUpError
 
 __all__ = [
+    "AlphaRattleEnergyIntegrator",
     "AlphaRattleIntegrator",
     "IncompatibleSystemError",
     "MidpointConvergenceError",

@@ -5,7 +5,7 @@ import json
 import pytest
 
 from openmm_alphaprk.benchmarks.cost import main
-from openmm_alphaprk.integrators.names import label
+from openmm_alphaprk.runs.integrator_names import label
 
 
 def test_benchmark_command_prints_and_writes_the_table(tmp_path, capsys):

@@ -259,7 +259,7 @@ def test_run_prints_a_table_and_where_the_files_are(tmp_path, cache, quick_defin
 
 def test_integrator_help_lists_every_name(tmp_path, cache):
     """Issue 15: the integrator argument's help (run) and -i's (compare) name all six forms."""
-    from openmm_alphaprk.integrators.names import VOCABULARY
+    from openmm_alphaprk.runs.integrator_names import VOCABULARY
 
     run_help = alphaprk("run", "--help", cwd=tmp_path, env_cache=cache).stdout
     compare_help = alphaprk("compare", "--help", cwd=tmp_path, env_cache=cache).stdout

@@ -340,7 +340,7 @@ def test_virtual_sites_refused_where_a_step_cannot_be_right(tip4pew_box, spec):
 def test_driver_runs_tip4pew_where_it_can_be_right_and_refuses_the_rest(spec, tmp_path):
     from quick_systems import quick_system
 
-    from openmm_alphaprk.integrators.names import IncompatibleSystemError
+    from openmm_alphaprk import IncompatibleSystemError
     from openmm_alphaprk.runs import run_nve
 
     platform_and_properties(spec)  # skip (or fail) without the platform

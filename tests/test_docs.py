@@ -8,7 +8,7 @@ import re
 from pathlib import Path
 
 from openmm_alphaprk import AlphaRattleIntegrator, RattleIntegrator
-from openmm_alphaprk.integrators.names import parse_integrator
+from openmm_alphaprk.runs.integrator_names import parse_integrator
 from openmm_alphaprk.workflows.comparison import DEFAULT_INTEGRATORS
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -10,8 +10,8 @@ import openmm.unit as unit
 import pytest
 from quick_systems import StopAt, quick_system
 
-from openmm_alphaprk.integrators.names import UnknownIntegratorError, make_integrator, parse_integrator
 from openmm_alphaprk.runs import RunFailedError, RunInterrupted, run_nve, rundir
+from openmm_alphaprk.runs.integrator_names import UnknownIntegratorError, make_integrator, parse_integrator
 from openmm_alphaprk.runs.rundir import RunDirectoryError
 from openmm_alphaprk.systems import UnknownSystemError
 from openmm_alphaprk.workflows import compare
@@ -356,8 +356,8 @@ def _final_velocities(prepared, directory):
 def test_compare_states_one_rms_and_one_drift_in_table_json_and_figure(cluster, tmp_path, monkeypatch):
     """The same numbers, printed the same way, in the table, each summary.json and the figure."""
     pytest.importorskip("matplotlib")
-    from openmm_alphaprk.integrators.names import label
     from openmm_alphaprk.observables import drift_text
+    from openmm_alphaprk.runs.integrator_names import label
     from openmm_alphaprk.workflows import plots
 
     built = []
@@ -396,7 +396,7 @@ def test_a_run_too_short_to_resolve_its_drift_says_so(cluster, tmp_path):
 def test_energy_mode_summary_uses_the_integrators_totals_over_every_step(cluster, tmp_path, monkeypatch):
     """controller.csv rows are samples (every energy interval); fractions and, when the integrator
     accumulates them, RMS and max |H - E_ref| cover every step."""
-    from openmm_alphaprk import AlphaRattleIntegrator
+    from openmm_alphaprk import AlphaRattleEnergyIntegrator
     from openmm_alphaprk.runs.reporters import EVERY_STEP, ROWS
 
     summary = run_nve(
@@ -405,11 +405,11 @@ def test_energy_mode_summary_uses_the_integrators_totals_over_every_step(cluster
     rows = np.loadtxt(tmp_path / "plain" / rundir.CONTROLLER_FILE, delimiter=",", skiprows=1)
     assert rows[:, 0].tolist() == [5, 10, 15, 20]  # the default: the energy interval, no single-stepping
     assert (summary.controller["steps"], summary.controller["rows"]) == (20, 4)
-    totals = AlphaRattleIntegrator.controller_totals
+    totals = AlphaRattleEnergyIntegrator.controller_totals
     if summary.controller["residuals_over"] == ROWS:
         assert "RMS |H - E_ref|" not in format_comparison_table([summary]).split("energy (energy mode)")[1]
     every = {"rms_residual": 0.0123, "max_abs_residual": 0.0456}
-    monkeypatch.setattr(AlphaRattleIntegrator, "controller_totals", lambda self: totals(self) | every)
+    monkeypatch.setattr(AlphaRattleEnergyIntegrator, "controller_totals", lambda self: totals(self) | every)
     summary = run_nve(
         cluster, "energy", tmp_path / "every", steps=20, **REFERENCE_RUN | {"energy_interval": 5}
     )

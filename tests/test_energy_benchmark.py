@@ -7,7 +7,7 @@ import pytest
 
 from openmm_alphaprk.benchmarks import energy as energy_benchmark
 from openmm_alphaprk.benchmarks.energy import EnergyRow, main, ratios_to_rattle
-from openmm_alphaprk.integrators.names import label
+from openmm_alphaprk.runs.integrator_names import label
 
 RATTLE, T0, E4 = label("rattle"), label("alpha4=0"), label("energy4")
 

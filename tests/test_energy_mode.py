@@ -302,3 +302,42 @@ def test_energy_mode_settings_are_checked_later_too_and_need_the_mode():
         fixed.reset_reference_energy()
     with pytest.raises(AttributeError, match="alpha='energy'"):
         _ = fixed.energy_residual
+
+
+def test_the_energy_mode_is_its_own_class_and_survives_serialization_and_copies():
+    """alpha='energy' makes an AlphaRattleEnergyIntegrator; XML, restore and deepcopy keep the class."""
+    import copy
+
+    from openmm_alphaprk import AlphaRattleEnergyIntegrator, restore_integrator
+
+    energy = AlphaRattleIntegrator(0.002, alpha="energy", order=4)
+    fixed = AlphaRattleIntegrator(0.002, alpha=0.1)
+    assert type(energy) is AlphaRattleEnergyIntegrator and isinstance(energy, AlphaRattleIntegrator)
+    assert type(fixed) is AlphaRattleIntegrator
+    for original in (energy, fixed):
+        restored = restore_integrator(mm.XmlSerializer.deserialize(mm.XmlSerializer.serialize(original)))
+        assert type(restored) is type(original)
+        assert restored.energy_mode == original.energy_mode
+        assert type(copy.deepcopy(original)) is type(original)
+    with pytest.raises(ValueError, match="alpha='energy'"):
+        AlphaRattleEnergyIntegrator(0.002, alpha=0.1)
+
+
+def test_energy_mode_options_with_a_fixed_alpha_are_refused():
+    """An option of the energy mode given with a fixed α would do nothing: an error names it."""
+    with pytest.raises(ValueError, match="alpha_bounds.*energy mode"):
+        AlphaRattleIntegrator(0.002, alpha=0.1, alpha_bounds=(-0.1, 0.1))
+    with pytest.raises(ValueError, match="energy_tolerance, max_trials"):
+        AlphaRattleIntegrator(0.002, energy_tolerance=0.1, max_trials=5)
+    fixed = AlphaRattleIntegrator(0.002, alpha=0.1)
+    with pytest.raises(AttributeError, match="alpha='energy'"):
+        fixed.energy_tolerance = 0.05  # would be kept on the Python object and do nothing
+
+
+def test_the_class_diagram_has_at_most_three_levels():
+    """Every class below openmm.CustomIntegrator is an integrator, but the private base; three levels."""
+    from openmm_alphaprk import AlphaRattleEnergyIntegrator
+
+    for cls in (RattleIntegrator, AlphaRattleIntegrator, AlphaRattleEnergyIntegrator):
+        ours = [c for c in cls.__mro__ if c.__module__.startswith("openmm_alphaprk")]
+        assert len(ours) <= 3, ours

@@ -81,7 +81,7 @@ def test_the_import_walker_resolves_relative_and_absolute_imports():
     """An upward import in a step-program module would be seen (and fail the test above)."""
     probe = PACKAGE / "integrators" / "probe.py"
     source = (
-        "from ..runs import run_nve\nfrom .. import benchmarks\nfrom .base import StepProgram\n"
+        "from ..runs import run_nve\nfrom .. import benchmarks\nfrom .pieces import _StepProgram\n"
         "from openmm_alphaprk.workflows import compare\nfrom openmm_alphaprk import make_smooth\n"
     )
     assert set(_imported_rooms(probe, source)) == {

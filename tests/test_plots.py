@@ -7,8 +7,8 @@ import pytest
 
 pytest.importorskip("matplotlib")
 
-from openmm_alphaprk.integrators.names import label  # noqa: E402
 from openmm_alphaprk.observables import drift_text, fit_drift, residual_statistics  # noqa: E402
+from openmm_alphaprk.runs.integrator_names import label  # noqa: E402
 from openmm_alphaprk.workflows.plots import (  # noqa: E402
     NOT_COMPARABLE,
     build_energy_residual_figure,

@@ -9,7 +9,7 @@ import openmm as mm
 import openmm.app as app
 import pytest
 
-from openmm_alphaprk import AlphaRattleIntegrator
+from openmm_alphaprk import AlphaRattleEnergyIntegrator, AlphaRattleIntegrator
 from openmm_alphaprk.reference import to_openmm_system, water_cluster
 from openmm_alphaprk.runs import reporters
 from openmm_alphaprk.runs.reporters import (
@@ -92,7 +92,7 @@ def test_summary_takes_every_step_from_the_integrator_and_alpha_from_the_rows(tm
         assert summary.rms_residual == pytest.approx(np.sqrt(np.mean(rows[:, 3] ** 2)))
     # with the integrator's own RMS and max over every step, those are used
     every = totals | {"rms_residual": 0.125, "max_abs_residual": 0.5}
-    monkeypatch.setattr(AlphaRattleIntegrator, "controller_totals", lambda self: every)
+    monkeypatch.setattr(AlphaRattleEnergyIntegrator, "controller_totals", lambda self: every)
     summary = reporter.summary()
     assert (summary.rms_residual, summary.max_abs_residual, summary.residuals_over) == (
         0.125,

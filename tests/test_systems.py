@@ -15,7 +15,7 @@ import openmm.unit as unit
 import pytest
 from quick_systems import QUICK, quick_system
 
-from openmm_alphaprk.integrators.names import IncompatibleSystemError
+from openmm_alphaprk import IncompatibleSystemError
 from openmm_alphaprk.runs import run_nve
 from openmm_alphaprk.systems import (
     CACHE_ENV,

@@ -28,7 +28,7 @@ def test_plain_steps_up_to_10_fs_and_any_quantity_do_not_warn(timestep):
 
 def test_the_vocabulary_takes_plain_picoseconds_on_purpose():
     """The CLI converts ``--timestep 20fs`` to 0.02 ps; that must not warn as if the user wrote 0.02."""
-    from openmm_alphaprk.integrators.names import make_integrator
+    from openmm_alphaprk.runs.integrator_names import make_integrator
 
     with warnings.catch_warnings():
         warnings.simplefilter("error", TimestepUnitWarning)

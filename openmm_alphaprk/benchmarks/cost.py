@@ -21,9 +21,9 @@ from functools import partial
 
 import openmm as mm
 
-from ..integrators import StepProgram, check_context
-from ..integrators.names import label, make_integrator
+from ..integrators import AlphaRattleIntegrator, RattleIntegrator, check_context
 from ..observables import energy_residuals, rms
+from ..runs.integrator_names import label, make_integrator
 from ..systems import PreparedSystem, build_water_box
 
 
@@ -44,7 +44,7 @@ class BenchmarkRow:
     host_syncs_per_step: float = 0.0
 
 
-#: Integrator names (:mod:`openmm_alphaprk.integrators.names`) of the core benchmark; the first is
+#: Integrator names (:mod:`openmm_alphaprk.runs.integrator_names`) of the core benchmark; the first is
 #: the baseline of the time ratios.
 CORE = ("verlet", "rattle", "alpha=0", "alpha=1/6", "alpha=1/2")
 #: Every program: the core set, α-RATTLE-4 (α = 0 and 0.05) and both energy modes.
@@ -199,14 +199,14 @@ def _energy_rms(box: PreparedSystem, integrator: mm.Integrator, context_args: tu
 
 def _force_evaluations(integrator: mm.Integrator) -> int | None:
     """Force evaluations counted by this package's integrators; None for others (one per step)."""
-    if isinstance(integrator, StepProgram):
+    if isinstance(integrator, (RattleIntegrator, AlphaRattleIntegrator)):
         return integrator.force_evaluations
     return None
 
 
 def _host_syncs(integrator: mm.Integrator) -> float:
     """Return the sums over degrees of freedom counted by our integrators (0 for others)."""
-    if isinstance(integrator, StepProgram):
+    if isinstance(integrator, (RattleIntegrator, AlphaRattleIntegrator)):
         return integrator.getGlobalVariableByName("host_syncs")
     return 0.0
 

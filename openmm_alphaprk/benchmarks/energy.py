@@ -30,7 +30,6 @@ import openmm as mm
 import openmm.unit as unit
 from tqdm import tqdm
 
-from ..integrators.names import label, make_integrator
 from ..observables import (
     alpha_percentiles,
     degrees_of_freedom,
@@ -40,6 +39,7 @@ from ..observables import (
     fit_drift,
     rms,
 )
+from ..runs.integrator_names import label, make_integrator
 from ..systems import PreparedSystem, build_water_box, list_systems, prepare_system
 from .cost import _context, add_box_arguments, build_platform, interleaved_timing, platform_properties
 
@@ -73,7 +73,7 @@ class BenchmarkIntegrator:
     substeps: int = 1
 
 
-#: The rows, by integrator name (:mod:`openmm_alphaprk.integrators.names`); the first is the baseline.
+#: The rows, by integrator name (:mod:`openmm_alphaprk.runs.integrator_names`); the first is the baseline.
 INTEGRATOR_NAMES = ("rattle", "energy", "alpha4=0", "energy4")
 #: α-RATTLE-4's fixed α values scanned beside the energy modes (with ``alpha4=0``: the fixed-α scan).
 FIXED_ALPHA_SCAN = (0.005, 0.01, 0.015, 0.02)

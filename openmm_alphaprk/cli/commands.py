@@ -8,8 +8,8 @@ import sys
 from pathlib import Path
 
 from .._units import InputError
-from ..integrators.names import parse_integrator
 from ..observables import drift_text
+from ..runs.integrator_names import parse_integrator
 from ..runs.options import DEFAULTS, RunOptions
 from .parser import BENCHMARKS
 from .quantities import QuantityError, parse_length, parse_time
@@ -66,7 +66,7 @@ def cmd_systems(args) -> int:
 
 def _prepare(name: str, args, rebuild: bool, specs=()):
     """Return ``prepare_system(name)`` with the CLI's cache and progress, checked against ``specs``."""
-    from ..integrators.names import check_compatible
+    from ..runs.integrator_names import check_compatible
     from ..systems import prepare_system
 
     platform = getattr(args, "platform", "CPU")

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import re
 
-from ..integrators.names import INTEGRATOR_HELP, INTEGRATOR_NAMES
+from ..runs.integrator_names import INTEGRATOR_HELP, INTEGRATOR_NAMES
 from ..runs.options import DEFAULTS, PRECISIONS
 from ..workflows.comparison import DEFAULT_INTEGRATORS, DEFAULT_SYSTEM, VERLET_NOTE
 from .quantities import positive

@@ -1,15 +1,67 @@
-"""α-RATTLE and α-RATTLE-4 as an OpenMM ``CustomIntegrator``: fixed α or the energy mode.
+"""α-RATTLE and α-RATTLE-4 with a fixed α, and their energy-preserving mode: the whole step programs.
 
-The class hierarchy, each layer declaring the variables its pieces use::
+The classes, each an integrator (the pieces they are built from are in :mod:`~.pieces`)::
 
-    StepProgram               base.py: common counters, RATTLE pieces, stepping, listing
-    └ MidpointProgram         midpoint.py: α, the midpoint iteration, α-RATTLE-4 sub-steps
-      └ EnergyControllerProgram   controller.py: the α* controller's variables and programs
-        └ EnergyModeProgram       energy_mode.py: its settings, defaults and reporting
-          └ AlphaRattleIntegrator here: validation, the fixed-α programs, the checks at step()
+    _StepProgram                      pieces.py: common state, pieces, stepping, listing
+    ├ RattleIntegrator                rattle.py
+    └ AlphaRattleIntegrator           here: fixed α, orders 2 and 4
+      └ AlphaRattleEnergyIntegrator   here: α chosen every step to hold the energy
+
+``AlphaRattleIntegrator(timestep, alpha="energy")`` returns an
+:class:`AlphaRattleEnergyIntegrator`. The four programs (fixed α or the energy mode, at
+order 2 or 4) are the ``_build_*`` methods below, side by side; the order-4 programs
+share one loop (:meth:`~.pieces._StepProgram._add_order4_loop`).
+
+**The energy mode.** Each step chooses α so that the total energy after the step equals the reference
+energy E_ref, the energy of the state the run started from. The
+controller runs entirely inside the ``CustomIntegrator`` step program, in one
+``while`` loop; each *trial* of an α is:
+
+1. the position solve with the current midpoint force (at the first trial of a
+   step a predictor: the force extrapolated from the previous step);
+2. the force at the midpoint x_m = (x0 + x1)/2 and the solve again: one midpoint
+   force per trial, so the midpoint converges along with α (the loop ends once α
+   stops moving and the last midpoint force changed x1 by less than
+   ``midpoint_tolerance``; trials after α froze only refine the midpoint);
+3. the force and energy at x1, v1 (RATTLE projection), the residual
+   r = U(x1) + K(v1) − E_ref;
+4. the next α by a damped secant step, Δα = −r S/(S² + (d S̄)²), with S = dr/dα
+   measured inside this step, S̄ a running geometric mean of |S| over past steps and
+   d = ``slope_damping``: where the slope nearly vanishes no bounded α can help, and
+   throwing α far would spoil the steps after it. The first trial's α is predicted
+   (:meth:`AlphaRattleEnergyIntegrator._add_alpha_prediction`): the step's energy change
+   at α = 0 and its slope S, fitted step by step as AR(2) series, give the α that
+   should land on E_ref; most steps on a water box need no second trial. The
+   second trial starts from the predicted slope and moves α by at least
+   ``alpha_probe`` so that the step measures its own slope (at a bound, where that
+   move would leave the interval, it probes inwards). Every move is limited to
+   ``max_alpha_change`` (at order 4 a limit that halves when α swings back and forth,
+   see ``_add_trust_update``) and clipped to the α bounds. A new trial first solves
+   x1 again with the new α and the last midpoint force, then goes on with step 2.
+
+At order 4 (α-RATTLE-4) the first RATTLE sub-step is taken once, and a trial redoes
+the middle α-RATTLE sub-step (steps 1–2 with h scaled by γ2) and the last RATTLE
+sub-step: three force evaluations per trial.
+
+α stops moving when the energy is within tolerance, when α sits at a bound and the
+root lies beyond it (the *fallback*: the best α inside the bounds), or after
+``max_trials`` trials (also a fallback); ``max_midpoint_iterations`` caps the midpoint
+forces of a step. E_ref is never moved by the controller, so a residual left by a
+fallback is corrected by later steps and cannot accumulate into drift. A non-finite
+residual or a midpoint iteration that ran away rejects the step (the context keeps
+the state at its start; ``step`` raises).
+
+E_ref is taken from the state at the first step, after ``reset_reference_energy()``,
+and when the user changed the state between steps: the positions or velocities at the
+start of a step differ from those the previous step ended with *and* the total energy
+differs from the one it ended with by more than max(tolerance, 1e-6 |E|). The energy
+test is what tells a user's change from the common platform's reordering and
+re-wrapping of atoms every 250 steps, which moves coordinates but not the energy.
 """
 
 from __future__ import annotations
+
+from typing import ClassVar
 
 import openmm as mm
 import openmm.unit as unit
@@ -19,23 +71,73 @@ from .._units import InputError, to_dimensionless, to_float
 from ..nve import warn_if_state_changing
 from ..observables import positive_int
 from ..smooth_forces import warn_if_not_smooth
-from .binding import N_PARTICLES
-from .controller import ControllerSettings
-from .energy_mode import (
+from .energy_settings import (
     CONTROLLER_DEFAULTS,
     DEFAULT_MAX_TRIALS,
     DEFAULT_SLOPE_DAMPING,
-    EnergyModeProgram,
+    NON_PERIODIC_MIDPOINT_TOLERANCE,
+    PREDICTOR_FORGETTING,
+    PREDICTOR_WARMUP,
+    PROVISIONAL_ENERGY_TOLERANCE,
+    ControllerSettings,
+    check_alpha_bounds,
     controller_settings,
 )
-from .midpoint import MidpointConvergenceError, first_forces, last_forces
-from .rattle import DEFAULT_CONSTRAINT_TOLERANCE
+from .pieces import (
+    ACCEPTED_MIDPOINT_CHANGE,
+    DEFAULT_CONSTRAINT_TOLERANCE,
+    MIDDLE_H,
+    MidpointConvergenceError,
+    _StepProgram,
+    first_forces,
+    last_forces,
+)
+from .variables import (
+    ALPHA,
+    ALPHA_AT_BOUND,
+    FELL_BACK,
+    MIDPOINT_CHANGE,
+    MIDPOINT_ITERATIONS,
+    N_PARTICLES,
+    PREDICTED_D0,
+    PREDICTED_SLOPE,
+    REFERENCE_ENERGY,
+    RESIDUAL,
+    SLOPE,
+    SLOPE_SCALE,
+    TRIALS,
+)
 
 DEFAULT_MIDPOINT_TOLERANCE = 1e-10  # nm, RMS change of x1 per degree of freedom
 DEFAULT_MAX_MIDPOINT_ITERATIONS = 20
 
+#: The series the controller predicts: D0, the one-step energy change at α = 0, and S = dH/dα.
+_PREDICTED_SERIES = ("d0", "slope")
+#: Each series' last two values and its exponentially weighted normal equations.
+_PREDICTOR_STATE = tuple(
+    f"{series}_{part}"
+    for series in _PREDICTED_SERIES
+    for part in ("lag1", "lag2", "g11", "g12", "g22", "b1", "b2")
+)
 
-class AlphaRattleIntegrator(EnergyModeProgram):
+#: Relative energy change between steps below which a moved state counts as the same
+#: state (the common platform's reordering), unless the energy tolerance is larger.
+_SAME_ENERGY = 1e-6
+
+
+def _ar2_prediction(series: str) -> str:
+    """Expression of the next value of ``series`` by its ridge-regularised AR(2) fit."""
+    return (
+        f"a1*{series}_lag1 + a2*{series}_lag2;"
+        f"a1 = ((g22 + ridge)*{series}_b1 - {series}_g12*{series}_b2)/det;"
+        f"a2 = ((g11 + ridge)*{series}_b2 - {series}_g12*{series}_b1)/det;"
+        f"det = max((g11 + ridge)*(g22 + ridge) - {series}_g12^2, 1e-300);"
+        "ridge = 0.005*(g11 + g22);"
+        f"g11 = {series}_g11; g22 = {series}_g22"
+    )
+
+
+class AlphaRattleIntegrator(_StepProgram):
     """α-RATTLE: a one-parameter family of symplectic constrained integrators.
 
     The potential is integrated along the straight path x0 → x1 with weights
@@ -45,11 +147,14 @@ class AlphaRattleIntegrator(EnergyModeProgram):
     (Li & Wang, J. Comput. Math. 41, 2023).
 
     With ``order=4`` the step is α-RATTLE-4, a triple-jump composition with α on the
-    middle sub-step only. With ``alpha="energy"`` α is chosen anew every step so that the total energy
-    after the step equals E_ref, the energy of the starting state
-    (see :mod:`openmm_alphaprk.integrators.controller`). Each step is still a member of the
-    family, so constraints and linear momentum are kept exactly and angular momentum
-    to the midpoint tolerance; symplecticity is given up.
+    middle sub-step only. With ``alpha="energy"`` the call returns an
+    :class:`AlphaRattleEnergyIntegrator`, which chooses α anew every step so that the
+    total energy after the step equals E_ref, the energy of the starting state (the
+    controller: this module's docstring). Each step is still a member of the family, so
+    constraints and linear momentum are kept exactly and angular momentum to the
+    midpoint tolerance; symplecticity is given up. The energy mode's options below are
+    refused with a fixed α, where they would do nothing, and its properties and methods
+    exist only on the energy-mode integrator.
 
     :meth:`program_listing` prints the step program OpenMM runs.
 
@@ -123,6 +228,8 @@ class AlphaRattleIntegrator(EnergyModeProgram):
     """
 
     _kind = 2
+    #: True if α is chosen each step to hold the energy (``alpha="energy"``).
+    energy_mode: ClassVar[bool] = False
 
     def __init__(
         self,
@@ -141,8 +248,12 @@ class AlphaRattleIntegrator(EnergyModeProgram):
         order: int = 2,
     ) -> None:
         _check_order(order)
-        settings = None
-        if _is_energy_mode(alpha):
+        if _is_energy_mode(alpha) != self.energy_mode:
+            raise InputError(
+                f"{type(self).__name__} was given alpha={alpha!r}; create integrators with "
+                "AlphaRattleIntegrator(timestep, alpha), where alpha='energy' gives the energy mode."
+            )
+        if self.energy_mode:
             settings = controller_settings(
                 order,
                 alpha_bounds,
@@ -151,11 +262,22 @@ class AlphaRattleIntegrator(EnergyModeProgram):
                 max_alpha_change,
                 alpha_probe,
                 slope_damping,
+                automatic_midpoint_tolerance=midpoint_tolerance is None,
             )
             low, high = settings.alpha_bounds
             start_alpha = min(max(0.0, low), high)
             default_tolerance = CONTROLLER_DEFAULTS[order].midpoint_tolerance
         else:
+            _refuse_energy_options(
+                alpha,
+                alpha_bounds=alpha_bounds is not None,
+                energy_tolerance=energy_tolerance is not None,
+                max_trials=max_trials != DEFAULT_MAX_TRIALS,
+                max_alpha_change=max_alpha_change is not None,
+                alpha_probe=alpha_probe is not None,
+                slope_damping=slope_damping != DEFAULT_SLOPE_DAMPING,
+            )
+            settings = None
             start_alpha = to_dimensionless(alpha, "alpha")
             default_tolerance = DEFAULT_MIDPOINT_TOLERANCE
         tolerance = to_float(
@@ -167,26 +289,21 @@ class AlphaRattleIntegrator(EnergyModeProgram):
         max_iterations = positive_int(max_midpoint_iterations, "max_midpoint_iterations")
         super().__init__(timestep, constraint_tolerance)
         self._add_midpoint_variables(start_alpha, tolerance, max_iterations, order)
-        self._build(order, settings)
-        if settings is not None and midpoint_tolerance is not None:
-            self.setGlobalVariableByName("midpoint_tolerance_automatic", 0)
+        self._add_program(order, settings)
 
-    def _build(self, order: int, settings: ControllerSettings | None) -> None:
-        """Build the program of ``order``: fixed α, or the energy mode with ``settings``.
+    def __new__(cls, *args: object, **kwargs: object) -> AlphaRattleIntegrator:
+        """``alpha="energy"`` makes an :class:`AlphaRattleEnergyIntegrator`."""
+        alpha = args[1] if len(args) > 1 else kwargs.get("alpha", 0.0)
+        if cls is AlphaRattleIntegrator and _is_energy_mode(alpha):  # type: ignore[arg-type]
+            cls = AlphaRattleEnergyIntegrator
+        return super().__new__(cls)
 
-        Either is the body of :meth:`~.base.StepProgram._add_step`; a fixed α starts
-        with the update-context-state step.
-        """
-        if settings is not None:
-            self._add_energy_mode_variables(settings, order)
-        builders = {
-            (2, False): self._build_program,
-            (4, False): self._build_order4_program,
-            (2, True): self._build_energy_program,
-            (4, True): self._build_order4_energy_program,
-        }
-        self._add_step(builders[order, settings is not None], update_context_state=settings is None)
+    def _add_program(self, order: int, settings: ControllerSettings | None) -> None:
+        """Add the fixed-α program of ``order``, starting with the update-context-state step."""
+        build = self._build_program if order == 2 else self._build_order4_program
+        self._add_step(build, update_context_state=True)
 
+    # ---------------------------------------------------------------- programs
     def _build_program(self) -> None:
         """Order 2, fixed α: RATTLE at α = 0, else a loop of solves and midpoint forces.
 
@@ -214,7 +331,7 @@ class AlphaRattleIntegrator(EnergyModeProgram):
         self.endBlock()
         self._add_velocity_update(last_forces("alpha"), "dt", fallback="v0")
         self.endBlock()
-        self._add_end_step()
+        self._add_midpoint_end_step()
 
     def _build_order4_program(self) -> None:
         """α-RATTLE-4 with fixed α: RATTLE (γ1 h), then a loop over α-RATTLE (γ2 h) and RATTLE (γ1 h).
@@ -227,16 +344,8 @@ class AlphaRattleIntegrator(EnergyModeProgram):
         self._add_save_step_start(xstep="x", vstep="v", fstart="f")
         self._add_first_outer_substep()
         self._add_inner_substeps_start("1 - delta(alpha)", fmid="f")
-        self.beginWhileBlock("phase < 3.5")
-        self._add_substep_solve(fallback="xstep")
-        self.beginIfBlock("substep_done > 0.5")
-        self._add_substep_end(fallback="vstep")
-        self.endBlock()
-        self.beginIfBlock("need_midpoint > 0.5")
-        self._add_midpoint_force("hsub", "alpha_sub")
-        self.endBlock()
-        self.endBlock()
-        self._add_end_step()
+        self._add_order4_loop(self._add_midpoint_force)
+        self._add_midpoint_end_step()
 
     def step(self, steps: int) -> None:
         """Advance by ``steps`` steps; raise if the midpoint iteration failed on the way.
@@ -270,6 +379,569 @@ class AlphaRattleIntegrator(EnergyModeProgram):
                 "is below the platform's precision, or check the system for overlapping atoms."
             )
 
+    def _massless_refusal(self, count: int, platform: str | None) -> str | None:
+        if count and (self.energy_mode or self.alpha != 0.0):
+            return (
+                f"{type(self).__name__} with "
+                f"{'the energy mode' if self.energy_mode else f'alpha={self.alpha}'} cannot integrate "
+                f"this system: {count} particle(s) have zero mass (virtual sites). "
+                "α ≠ 0 takes a force at the unconstrained midpoint of the step, where no OpenMM "
+                "platform places virtual sites. With virtual sites use alpha=0 (RATTLE, or order=4 for "
+                "triple-jump RATTLE) on CUDA, OpenCL or HIP after integrator.check_context(context), or "
+                "openmm.VerletIntegrator."
+            )
+        return super()._massless_refusal(count, platform)
+
+    # -------------------------------------------------------------- parameters
+    @property
+    def alpha(self) -> float:
+        """The method parameter α; may be changed between steps.
+
+        In the energy mode: α* of the last step, and setting it sets the α the next
+        step's controller starts from.
+        """
+        return self.getGlobalVariableByName(ALPHA)
+
+    @alpha.setter
+    def alpha(self, value: float) -> None:
+        self.setGlobalVariableByName(ALPHA, to_dimensionless(value, "alpha"))
+
+    @property
+    def midpoint_tolerance(self) -> unit.Quantity:
+        """Stopping tolerance of the midpoint iteration (RMS change of x1 per DOF)."""
+        return self.getGlobalVariableByName("midpoint_tolerance") * unit.nanometers
+
+    @midpoint_tolerance.setter
+    def midpoint_tolerance(self, value: unit.Quantity | float) -> None:
+        tolerance = to_float(value, unit.nanometers, "midpoint_tolerance", positive=True)
+        self.setGlobalVariableByName("midpoint_tolerance", tolerance)
+        if self.energy_mode:  # the user's choice: not changed for the system
+            self.setGlobalVariableByName("midpoint_tolerance_automatic", 0)
+
+    @property
+    def max_midpoint_iterations(self) -> int:
+        """Cap on midpoint force evaluations per step."""
+        return int(self.getGlobalVariableByName("max_midpoint_iterations"))
+
+    @max_midpoint_iterations.setter
+    def max_midpoint_iterations(self, value: int) -> None:
+        self.setGlobalVariableByName(
+            "max_midpoint_iterations", positive_int(value, "max_midpoint_iterations")
+        )
+
+    @property
+    def midpoint_iterations(self) -> int:
+        """Midpoint force evaluations used in the last step (0 at α = 0)."""
+        return int(self.getGlobalVariableByName(MIDPOINT_ITERATIONS))
+
+    @property
+    def midpoint_change(self) -> unit.Quantity:
+        """RMS change of x1 in the last midpoint iteration of the last step."""
+        return self.getGlobalVariableByName(MIDPOINT_CHANGE) * unit.nanometers
+
+    @property
+    def order(self) -> int:
+        """2 (α-RATTLE) or 4 (α-RATTLE-4)."""
+        return int(self.getGlobalVariableByName("order"))
+
+    def __repr__(self) -> str:
+        alpha = "'energy'" if self.energy_mode else self.alpha
+        order = f", order={self.order}" if self.order != 2 else ""
+        return f"{type(self).__name__}(timestep={self.timestep}, alpha={alpha}{order})"
+
+    def __getattr__(self, name: str) -> object:
+        if name in _ENERGY_MODE_ONLY:
+            raise AttributeError(_energy_mode_only(name))
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+
+    def __setattr__(self, name: str, value: object) -> None:
+        if name in _ENERGY_MODE_ONLY and not self.energy_mode:
+            raise AttributeError(_energy_mode_only(name))
+        super().__setattr__(name, value)
+
+
+class AlphaRattleEnergyIntegrator(AlphaRattleIntegrator):
+    """α-RATTLE's energy-preserving mode: α chosen every step so that H stays at E_ref.
+
+    Made by ``AlphaRattleIntegrator(timestep, alpha="energy", ...)`` (the parameters
+    are documented there); this class adds what the mode has and a fixed α has not:
+    E_ref, H − E_ref, the tolerance, the α bounds and the totals of the run. The
+    controller is described in the module's docstring.
+    """
+
+    energy_mode: ClassVar[bool] = True
+
+    def _add_program(self, order: int, settings: ControllerSettings | None) -> None:
+        """Add the controller's variables and the energy-mode program of ``order`` (NVE: no update step)."""
+        self._add_energy_mode_variables(settings, order)
+        build = self._build_energy_program if order == 2 else self._build_order4_energy_program
+        self._add_step(build, update_context_state=False)
+
+    def _add_energy_mode_variables(self, settings: ControllerSettings, order: int) -> None:
+        """Declare the controller's settings and state (after :meth:`_add_midpoint_variables`)."""
+        low, high = settings.alpha_bounds
+        automatic = settings.energy_tolerance is None
+        for name, value in (
+            ("alpha_min", low),
+            ("alpha_max", high),
+            ("energy_tolerance", PROVISIONAL_ENERGY_TOLERANCE if automatic else settings.energy_tolerance),
+            ("energy_tolerance_automatic", float(automatic)),
+            ("max_trials", settings.max_trials),
+            ("max_alpha_change", settings.max_alpha_change),
+            ("alpha_probe", settings.alpha_probe),
+            ("slope_damping", settings.slope_damping),
+            ("trust", settings.max_alpha_change),  # the move limit; adapted at order 4 only
+            ("predictor_forgetting", PREDICTOR_FORGETTING),
+            ("predictor_warmup", PREDICTOR_WARMUP if settings.predict else 1e30),
+        ):
+            self.addGlobalVariable(name, value)
+        for name in (
+            REFERENCE_ENERGY,
+            "reference_set",
+            "reference_resets",
+            "state_moved",
+            "start_energy",
+            "end_energy",
+            "retake",
+            "retry",
+            "kinetic_energy",
+            RESIDUAL,
+            "residual_last",
+            "alpha_last",
+            "alpha_next",
+            "alpha_start",
+            SLOPE,
+            SLOPE_SCALE,
+            "slope_measured",
+            TRIALS,
+            "last_move",
+            "controller_done",
+            "restarting",
+            FELL_BACK,
+            ALPHA_AT_BOUND,
+            "steps_within_tolerance",
+            "steps_fallen_back",
+            "steps_at_bound",
+            "predictor_valid",
+            "sum_residual_squared",
+            "max_abs_residual",
+            "start_residual",
+            "first_residual",
+            "first_alpha",
+            PREDICTED_D0,
+            PREDICTED_SLOPE,
+            "use_prediction",
+            "predictor_steps",
+            *_PREDICTOR_STATE,
+        ):
+            self.addGlobalVariable(name, 0)
+        # 0: the user chose it
+        self.addGlobalVariable("midpoint_tolerance_automatic", float(settings.automatic_midpoint_tolerance))
+        for name in ("xend", "vend", "fmid_last") + (("xa", "va", "fa", "fstart_last") if order == 4 else ()):
+            self.addPerDofVariable(name, 0)
+
+    # ---------------------------------------------------------------- programs
+    def _build_energy_program(self) -> None:
+        """Order 2: one loop over trials; a trial ends with its velocity update and residual."""
+        self._add_save_step_start(fstart="f")
+        self._add_reference_check()
+        # F(x_m) predicted by linear extrapolation in time from the previous step's midpoint force
+        self.addComputePerDof("fmid", "select(predictor_valid, 2*fstart - fmid_last, fstart)")
+        self._add_midpoint_setup("1")
+        self._add_controller_start()
+        self.addComputeGlobal("solving", "1")
+        self.beginWhileBlock("solving > 0.5")
+        self._add_position_solve(first_forces("alpha"), "dt", fallback="x0")
+        self.beginIfBlock("need_midpoint < 0.5")
+        self._add_velocity_update(last_forces("alpha"), "dt", fallback="v0")
+        self._add_trial_end(next_start={})
+        self.addComputeGlobal("solving", "restarting")
+        self.endBlock()
+        self.beginIfBlock("need_midpoint > 0.5")
+        self._add_trial_midpoint_force("dt", "alpha")
+        self.endBlock()
+        self.endBlock()
+        self._add_controller_bookkeeping()
+        self._add_midpoint_end_step()
+
+    def _build_order4_energy_program(self) -> None:
+        """α-RATTLE-4: the first RATTLE sub-step once, then a loop over trials of the other two.
+
+        A trial redoes the middle α-RATTLE sub-step (γ2 h; midpoint force
+        warm-started from the previous trial) and the last RATTLE sub-step: three
+        force evaluations per trial.
+        """
+        # F(x0) is read before the reference check's energy: see _add_reference_check
+        self._add_save_step_start(xstep="x", vstep="v", fstart="f")
+        self._add_reference_check()
+        self._add_first_outer_substep()
+        self._add_controller_start()
+        # the midpoint force's offset from the sub-step's start force changes little between steps
+        self._add_inner_substeps_start(
+            "1",
+            xa="x",
+            va="v",
+            fa="f",
+            fmid="f + select(predictor_valid, fmid_last - fstart_last, 0)",
+            fstart_last="f",
+        )
+        self._add_order4_loop(self._add_trial_midpoint_force, trial_end=self._add_order4_trial_end)
+        self._add_controller_bookkeeping()
+        self._add_trust_update()
+        self._add_midpoint_end_step()
+
+    def _add_order4_trial_end(self) -> None:
+        """After the last sub-step of a trial: the trial's end; a new trial restarts the middle sub-step."""
+        self._add_trial_end(next_start={"x0": "xa", "v0": "va", "fstart": "fa"})
+        self.addComputeGlobal("phase", "select(restarting, 2, phase)")
+        self.addComputeGlobal("hsub", f"select(restarting, {MIDDLE_H}, hsub)")
+        self.addComputeGlobal("alpha_sub", "alpha*restarting")
+
+    # ------------------------------------------------------------------ pieces
+    def _add_reference_check(self) -> None:
+        """Take E_ref at the first step, after a reset, and after the user changed the state.
+
+        A start state that differs from the end of the previous step (a sum over
+        degrees of freedom, zero when nothing moved) opens the block; inside it the
+        energy decides: the common platform's reordering and re-wrapping of atoms move
+        coordinates but keep the energy.
+
+        The force at x0 must have been read (copied) before this block: with the
+        energy read here as a step's first evaluation and ``f`` read after it, the
+        forces were wrong on CUDA and NVIDIA's OpenCL (measured on an H100: +32
+        kJ/mol in one step; not seen with pocl or Reference).
+        """
+        self._add_sum("state_moved", "(x - xend)^2 + (v - vend)^2")
+        self.beginIfBlock("state_moved + 1 - reference_set > 0")
+        self._add_sum("kinetic_energy", "0.5*m*v*v")
+        self.addComputeGlobal("start_energy", "energy + kinetic_energy")
+        self.addComputeGlobal(
+            "retake",
+            "max(1 - reference_set, step(abs(start_energy - end_energy) - same));"
+            f"same = max(energy_tolerance, {_SAME_ENERGY}*abs(end_energy))",
+        )
+        self.addComputeGlobal("reference_energy", "select(retake, start_energy, reference_energy)")
+        # H − E_ref at the step's start is end_energy − E_ref (zero after a retake)
+        self.addComputeGlobal("end_energy", "select(retake, start_energy, end_energy)")
+        for name in ("predictor_steps", *_PREDICTOR_STATE):
+            self.addComputeGlobal(name, f"{name}*(1 - retake)")
+        self.addComputeGlobal("reference_resets", "reference_resets + retake")
+        self.addComputeGlobal("predictor_valid", "predictor_valid*(1 - retake)")
+        self.addComputeGlobal("slope", "select(retake, 0, slope)")
+        self.addComputeGlobal("reference_set", "1")
+        self.endBlock()
+
+    def _add_controller_start(self) -> None:
+        """Reset the per-step controller state; the first trial uses the last step's α*."""
+        self.addComputeGlobal("alpha_start", "alpha")
+        self.addComputeGlobal("alpha", "min(max(alpha, alpha_min), alpha_max)")
+        for name in ("trials", "slope_measured", "controller_done", "restarting"):
+            self.addComputeGlobal(name, "0")
+        self._add_alpha_prediction()
+
+    def _add_alpha_prediction(self) -> None:
+        """Predict the first trial's α from the step's predicted D0 and S (after the warm-up).
+
+        H − E_ref after a step taken with α is, to first order in α,
+        r = r_start + D0 + α S: r_start the residual the step starts with, D0 the
+        step's energy change at α = 0, S = dH/dα. Both D0 and S oscillate smoothly
+        from step to step; each is predicted by an AR(2) model, x_n ≈ a1 x_{n−1} + a2
+        x_{n−2}, fitted by exponentially weighted least squares (forgetting factor
+        ``predictor_forgetting``, a ridge of 1 % of the mean diagonal) over the
+        steps so far. The first trial then takes the damped Newton α for the
+        predicted r, within ``trust`` of the last α* and the bounds, and the second
+        trial (if any) starts from the predicted slope. Before ``predictor_warmup``
+        steps with a measured S the first trial keeps the last α*.
+        """
+        self.addComputeGlobal("start_residual", "end_energy - reference_energy")
+        for series, variable in zip(_PREDICTED_SERIES, (PREDICTED_D0, PREDICTED_SLOPE)):
+            self.addComputeGlobal(variable, _ar2_prediction(series))
+        self.addComputeGlobal("use_prediction", "step(predictor_steps - predictor_warmup + 0.5)")
+        self.addComputeGlobal(
+            "alpha",
+            "select(use_prediction, min(max(limited, alpha_min), alpha_max), alpha);"
+            "limited = min(max(newton, alpha_start - trust), alpha_start + trust);"
+            "newton = -(start_residual + predicted_d0)*predicted_slope"
+            "/(predicted_slope^2 + (slope_damping*slope_scale)^2 + 1e-30)",
+        )
+        self.addComputeGlobal("slope", "select(use_prediction, predicted_slope, slope)")
+        self.addComputeGlobal("first_alpha", "alpha")
+
+    def _add_trial_midpoint_force(self, h: str, alpha: str) -> None:
+        """One pass of the midpoint block: the controller converges the midpoint along with α.
+
+        Like :meth:`~.pieces._StepProgram._add_midpoint_force` but without its
+        stopping test (``need_midpoint`` = 0 after one force); and when ``restarting``
+        is set (a new trial of α), x1 is first solved again from x0 with the new α and
+        the previous midpoint force.
+        """
+        self._add_midpoint_reference()
+        self.addComputePerDof("x", f"select(restarting, x0 + {h}*v0 + {h}*{h}*({first_forces(alpha)})/m, x0)")
+        self.addConstrainPositions()
+        self.addComputePerDof("x1", "select(restarting, x, x1)")
+        self.addComputeGlobal("restarting", "0")
+        self.addComputePerDof("x", "x0")  # the reference of the next solve again (Reference/CPU)
+        self.addConstrainPositions()
+        self._add_midpoint_evaluation(h, alpha)
+        self.addComputeGlobal("need_midpoint", "0")
+
+    def _add_trial_end(self, next_start: dict[str, str]) -> None:
+        """Residual of the trial, the next α, and either the end of the step or a new trial.
+
+        A new trial restarts the α sub-step from ``next_start`` (the state after the
+        first sub-step at order 4) and goes straight to its midpoint block, which
+        solves x1 with the new α before taking the midpoint force.
+        """
+        self._add_sum("kinetic_energy", "0.5*m*v*v")
+        self.addComputeGlobal("residual", "energy + kinetic_energy - reference_energy")
+        self.addComputeGlobal("trials", "trials + 1")
+        self.addComputeGlobal("first_residual", "select(delta(trials - 1), residual, first_residual)")
+        self._add_alpha_update()
+        # a midpoint that ran away: one more pass without a midpoint force falls back to the start
+        self.addComputeGlobal(
+            "retry",
+            "controller_done*(1 - midpoint_failed)*(1 - step(accepted - midpoint_change));"
+            + ACCEPTED_MIDPOINT_CHANGE,
+        )
+        self.addComputeGlobal("midpoint_failed", "max(midpoint_failed, retry)")
+        self.addComputeGlobal("restarting", "1 - controller_done + retry")
+        self.addComputeGlobal("alpha", "select(restarting, alpha_next, alpha)")
+        self.addComputeGlobal("need_midpoint", "restarting")
+        self.addComputeGlobal("previous_midpoint_change", "1e30")
+        self.addComputeGlobal("end_energy", "residual + reference_energy")
+        self.addComputePerDof("xend", "x")
+        self.addComputePerDof("vend", "v")
+        self.addComputePerDof("fmid_last", "fmid")
+        for variable, expression in next_start.items():
+            self.addComputePerDof(variable, f"select(restarting, {expression}, {variable})")
+
+    def _add_alpha_update(self) -> None:
+        """Secant step on r(α) with the in-step slope; bounded; decide whether to stop.
+
+        Written with ``select``/``step`` so that no division by a vanishing slope
+        can reach α: the Newton step is −r S/(S² + ε), then limited and clipped.
+        """
+        secant = "step(trials - 1.5)*step(abs(alpha - alpha_last) - 0.5*min(alpha_probe, trust))"
+        self.addComputeGlobal(
+            "slope",
+            "select(new_secant, (residual - residual_last)/(alpha - alpha_last), slope);"
+            f"new_secant = {secant}",
+        )
+        self.addComputeGlobal("slope_measured", f"max(slope_measured, {secant})")
+        self.addComputeGlobal("residual_last", "residual")
+        self.addComputeGlobal("alpha_last", "alpha")
+        self.addComputeGlobal(
+            "alpha_next",
+            "select(frozen, alpha, min(max(moved, alpha_min), alpha_max));"
+            "frozen = max(step(energy_tolerance - abs(residual)), step(trials - max_trials + 0.5));"
+            "moved = select(slope_measured + 1 - delta(clipped - alpha), clipped, inwards);"
+            "inwards = alpha - outward*probe;"
+            "outward = 2*step(change) - 1;"
+            "clipped = min(max(alpha + change, alpha_min), alpha_max);"
+            "change = select(slope_measured, limited, select(limited, probe_sized, probe));"
+            "probe_sized = (2*step(limited) - 1)*max(abs(limited), probe);"
+            "probe = min(alpha_probe, trust);"
+            "limited = min(max(newton, -trust), trust);"
+            "newton = -residual*slope/(slope*slope + (slope_damping*slope_scale)^2 + 1e-30)",
+        )
+        self.addComputeGlobal(
+            "controller_done",
+            "max(max(stays*step(midpoint_tolerance - midpoint_change), capped),"
+            " max(not_finite, midpoint_failed));"
+            "not_finite = 1 - step(1e30 - abs(residual));"
+            "capped = step(midpoint_iterations - max_midpoint_iterations + 0.5);"
+            "stays = 1 - step(abs(alpha_next - alpha) - 1e-12)",
+        )
+
+    def _add_controller_bookkeeping(self) -> None:
+        """Per-step diagnostics and totals."""
+        self.addComputeGlobal("alpha", "select(midpoint_failed, alpha_start, alpha)")
+        self.addComputeGlobal(
+            "fell_back", "(1 - midpoint_failed)*(1 - step(energy_tolerance - abs(residual)))"
+        )
+        self.addComputeGlobal(
+            "alpha_at_bound", "(1 - midpoint_failed)*max(delta(alpha - alpha_min), delta(alpha - alpha_max))"
+        )
+        self.addComputeGlobal(
+            "steps_within_tolerance", "steps_within_tolerance + (1 - midpoint_failed - fell_back)"
+        )
+        self.addComputeGlobal("steps_fallen_back", "steps_fallen_back + fell_back")
+        self.addComputeGlobal("steps_at_bound", "steps_at_bound + alpha_at_bound")
+        # every step's H − E_ref, for the run's RMS and maximum without reading the state each step
+        self.addComputeGlobal("sum_residual_squared", "sum_residual_squared + residual^2")
+        self.addComputeGlobal("max_abs_residual", "max(max_abs_residual, abs(residual))")
+        self._add_slope_scale_update()
+        self._add_predictor_update()
+        self.addComputeGlobal("predictor_valid", "1 - midpoint_failed")
+
+    def _add_predictor_update(self) -> None:
+        """Add the step's D0 and S to the AR(2) fits (not after a rejected step).
+
+        S is the in-step secant slope when the step took a second trial, else the
+        slope the step assumed (the prediction; during the warm-up the last
+        measured one); D0 = r₁ − r_start − α₁ S from the first trial's residual r₁.
+        """
+        self.addComputeGlobal(
+            "predictor_steps", "predictor_steps + (1 - midpoint_failed)*max(slope_measured, use_prediction)"
+        )
+        observed = {"d0": "first_residual - start_residual - first_alpha*slope", "slope": "slope"}
+        lam = "predictor_forgetting"
+        for series in _PREDICTED_SERIES:
+            x = f"({observed[series]})"
+            lag1, lag2 = f"{series}_lag1", f"{series}_lag2"
+            for part, term in (
+                ("g11", f"{lag1}*{lag1}"),
+                ("g12", f"{lag1}*{lag2}"),
+                ("g22", f"{lag2}*{lag2}"),
+                ("b1", f"{lag1}*{x}"),
+                ("b2", f"{lag2}*{x}"),
+            ):
+                name = f"{series}_{part}"
+                self.addComputeGlobal(name, f"select(midpoint_failed, {name}, {lam}*{name} + {term})")
+            self.addComputeGlobal(lag2, f"select(midpoint_failed, {lag2}, {lag1})")
+            self.addComputeGlobal(lag1, f"select(midpoint_failed, {lag1}, {x})")
+
+    def _add_slope_scale_update(self) -> None:
+        """S̄, the damping scale: a running geometric mean of the in-step slopes |S|.
+
+        One measured |S| moves S̄ by at most ×10^0.2 up and ×10^-0.6 down, so that
+        a secant over a noise-sized move of α cannot inflate S̄ (an inflated S̄ damps
+        every Newton step to nothing: the *dead controller*, S̄ ≈ 6e8 kJ/mol measured on
+        water and villin at order 2 before this rule) and an inflated S̄ is back within
+        about a dozen steps.
+        """
+        self.addComputeGlobal(
+            "slope_scale",
+            "select(slope_measured, select(slope_scale, running, max(abs(slope), 1e-12)), slope_scale);"
+            "running = exp(0.8*log(slope_scale) + 0.2*log(bounded));"
+            "bounded = min(max(abs(slope), 1e-3*slope_scale), 10*slope_scale)",
+        )
+
+    def _add_trust_update(self) -> None:
+        """Halve the per-trial move limit when α swings back and forth by a full limit and misses.
+
+        A step that moved α by more than the limit, opposite to the previous step's
+        move of more than the limit, and still missed E_ref is the signature of a
+        controller that cannot reach E_ref (a residual beyond α's authority, or a slope
+        that changes sign across the move):
+        at order 4 on villin it ran into a limit cycle, α swinging between ±0.05 each
+        step for 500 steps while H − E_ref grew to 18 kJ/mol. A step within tolerance
+        grows the limit again by ×1.5, up to ``max_alpha_change``; it never drops below
+        a quarter of ``alpha_probe``. Order 4 only: at order 2 it made the water box
+        drift (CUDA mixed, 10 ps: RMS 6.8 against 0.47 kJ/mol without it), so there the
+        limit stays ``max_alpha_change``.
+        """
+        self.addComputeGlobal(
+            "trust",
+            "select(missed_far, max(0.5*trust, 0.25*alpha_probe), select(fell_back, trust, grown));"
+            "grown = min(1.5*trust, max_alpha_change);"
+            "missed_far = fell_back*far*step(-move*last_move);"
+            "far = step(abs(move) - trust)*step(abs(last_move) - trust);"
+            "move = alpha - alpha_start",
+        )
+        self.addComputeGlobal("last_move", "alpha - alpha_start")
+
+    # ---------------------------------------------------------------- what the user sets and reads
+    def _set_automatic_energy_tolerance(self, n_atoms: int, precision: str) -> None:
+        """Set the default energy tolerance for the system and platform, unless the user chose one."""
+        if self.getGlobalVariableByName("energy_tolerance_automatic"):
+            tolerance = platforms.default_energy_tolerance(n_atoms, precision)
+            self.setGlobalVariableByName("energy_tolerance", tolerance)
+
+    def _set_system_defaults(self, periodic: bool) -> None:
+        """Set the midpoint tolerance for the system's box, unless the user chose one.
+
+        With a periodic box angular momentum is not conserved by any integrator and the
+        order's default stands. Without one (a cluster or molecule in vacuum) the
+        midpoint is iterated to :data:`NON_PERIODIC_MIDPOINT_TOLERANCE`, which keeps
+        angular momentum to round-off, at more midpoint forces per step.
+        """
+        if not periodic and self.getGlobalVariableByName("midpoint_tolerance_automatic"):
+            self.setGlobalVariableByName("midpoint_tolerance", NON_PERIODIC_MIDPOINT_TOLERANCE)
+
+    def reset_reference_energy(self) -> None:
+        """Take E_ref from the state at the start of the next step.
+
+        The integrator also notices by itself when positions or velocities were set
+        between steps; call this to be explicit, e.g. after changing parameters of a
+        force (which changes the energy without changing the state).
+        """
+        self.setGlobalVariableByName("reference_set", 0)
+
+    @property
+    def reference_energy(self) -> unit.Quantity:
+        """E_ref, the total energy the energy mode holds (NaN before the first step)."""
+        if not self.getGlobalVariableByName("reference_set") and not self.steps_taken:
+            return float("nan") * unit.kilojoules_per_mole
+        return self.getGlobalVariableByName(REFERENCE_ENERGY) * unit.kilojoules_per_mole
+
+    @property
+    def energy_residual(self) -> unit.Quantity:
+        """H − E_ref after the last step (total energy with on-step velocities)."""
+        return self.getGlobalVariableByName(RESIDUAL) * unit.kilojoules_per_mole
+
+    @property
+    def energy_tolerance(self) -> unit.Quantity:
+        """The controller's target |H − E_ref| per step."""
+        return self.getGlobalVariableByName("energy_tolerance") * unit.kilojoules_per_mole
+
+    @energy_tolerance.setter
+    def energy_tolerance(self, value: unit.Quantity | float) -> None:
+        tolerance = to_float(value, unit.kilojoules_per_mole, "energy_tolerance", positive=True)
+        self.setGlobalVariableByName("energy_tolerance", tolerance)
+        self.setGlobalVariableByName("energy_tolerance_automatic", 0)
+
+    @property
+    def alpha_bounds(self) -> tuple[float, float]:
+        """The interval α* is kept in."""
+        return (self.getGlobalVariableByName("alpha_min"), self.getGlobalVariableByName("alpha_max"))
+
+    @alpha_bounds.setter
+    def alpha_bounds(self, bounds: tuple[float, float]) -> None:
+        low, high = check_alpha_bounds(bounds)
+        self.setGlobalVariableByName("alpha_min", low)
+        self.setGlobalVariableByName("alpha_max", high)
+
+    @property
+    def fell_back(self) -> bool:
+        """Whether the last step ended outside the energy tolerance (α at a bound or trial cap)."""
+        return bool(self.getGlobalVariableByName(FELL_BACK))
+
+    @property
+    def trials(self) -> int:
+        """Trials of α in the last step (two force evaluations each)."""
+        return int(self.getGlobalVariableByName(TRIALS))
+
+    def controller_totals(self) -> dict[str, float]:
+        """Totals over every step since the integrator was created.
+
+        Returns
+        -------
+        A dict with ``steps``, ``steps_within_tolerance``, ``steps_fallen_back``,
+        ``steps_at_bound``, ``reference_resets`` (counts), the fractions
+        ``fraction_within_tolerance`` and ``fraction_fallen_back``,
+        ``force_evaluations_per_step``, and ``rms_residual`` and ``max_abs_residual``:
+        RMS and maximum of H − E_ref after each step (kJ/mol; NaN before the first step),
+        accumulated inside the step program, so that a reporter need not read the state
+        every step.
+        """
+        steps = self.steps_taken
+        totals = {
+            name: int(self.getGlobalVariableByName(name))
+            for name in ("steps_within_tolerance", "steps_fallen_back", "steps_at_bound", "reference_resets")
+        }
+        fraction = (lambda n: n / steps) if steps else (lambda n: float("nan"))
+        squares = self.getGlobalVariableByName("sum_residual_squared")
+        return {
+            "steps": steps,
+            **totals,
+            "fraction_within_tolerance": fraction(totals["steps_within_tolerance"]),
+            "fraction_fallen_back": fraction(totals["steps_fallen_back"]),
+            "force_evaluations_per_step": self.force_evaluations_per_step,
+            "rms_residual": fraction(squares) ** 0.5 if steps else float("nan"),
+            "max_abs_residual": self.getGlobalVariableByName("max_abs_residual") if steps else float("nan"),
+        }
+
     def _check_system(self, context: mm.Context) -> None:
         """Energy mode: the default tolerance from the platform's precision, and the System's warnings."""
         if self.energy_mode:
@@ -285,24 +957,6 @@ class AlphaRattleIntegrator(EnergyModeProgram):
             particles = int(self.getGlobalVariableByName(N_PARTICLES))
             self._set_automatic_energy_tolerance(particles, platforms.UNKNOWN_PRECISION)
 
-    def _massless_refusal(self, count: int, platform: str | None) -> str | None:
-        if count and (self.energy_mode or self.alpha != 0.0):
-            return (
-                f"{type(self).__name__} with "
-                f"{'the energy mode' if self.energy_mode else f'alpha={self.alpha}'} cannot integrate "
-                f"this system: {count} particle(s) have zero mass (virtual sites). "
-                "α ≠ 0 takes a force at the unconstrained midpoint of the step, where no OpenMM "
-                "platform places virtual sites. With virtual sites use alpha=0 (RATTLE, or order=4 for "
-                "triple-jump RATTLE) on CUDA, OpenCL or HIP after integrator.check_context(context), or "
-                "openmm.VerletIntegrator."
-            )
-        return super()._massless_refusal(count, platform)
-
-    def __repr__(self) -> str:
-        alpha = "'energy'" if self.energy_mode else self.alpha
-        order = f", order={self.order}" if self.order != 2 else ""
-        return f"{type(self).__name__}(timestep={self.timestep}, alpha={alpha}{order})"
-
 
 def _check_order(order: object) -> None:
     if isinstance(order, bool) or order not in (2, 4):
@@ -316,3 +970,26 @@ def _is_energy_mode(alpha: float | str) -> bool:
     if isinstance(alpha, str) and alpha != "energy":
         raise InputError(f"alpha must be a number or 'energy', got {alpha!r}.")
     return isinstance(alpha, str)
+
+
+def _refuse_energy_options(alpha: object, **given: bool) -> None:
+    """Refuse energy-mode options given with a fixed α, where they would do nothing."""
+    names = [name for name, was_given in given.items() if was_given]
+    if names:
+        raise InputError(
+            f"{', '.join(names)}: option(s) of the energy mode, given with a fixed alpha={alpha!r}, where "
+            "they do nothing. Pass alpha='energy' for the energy mode, or leave them out."
+        )
+
+
+def _energy_mode_only(name: str) -> str:
+    return (
+        f"{name} exists only in the energy-preserving mode; create the integrator with "
+        "AlphaRattleIntegrator(timestep, alpha='energy')."
+    )
+
+
+#: What the energy mode has and a fixed α has not.
+_ENERGY_MODE_ONLY = frozenset(
+    name for name in vars(AlphaRattleEnergyIntegrator) if not name.startswith("_") and name != "energy_mode"
+)

@@ -4,12 +4,10 @@ from __future__ import annotations
 
 import openmm.unit as unit
 
-from .base import StepProgram
-
-DEFAULT_CONSTRAINT_TOLERANCE = 1e-8
+from .pieces import DEFAULT_CONSTRAINT_TOLERANCE, _StepProgram
 
 
-class RattleIntegrator(StepProgram):
+class RattleIntegrator(_StepProgram):
     """Velocity Verlet with SHAKE/SETTLE positions and RATTLE velocities.
 
     The standard constrained integrator, written with the same pieces as

@@ -5,21 +5,22 @@ from __future__ import annotations
 import openmm as mm
 
 from .._units import InputTypeError
-from .alpha_rattle import AlphaRattleIntegrator
-from .base import KIND_VARIABLE, StepProgram
+from .alpha_rattle import AlphaRattleEnergyIntegrator, AlphaRattleIntegrator
+from .pieces import _StepProgram
 from .rattle import RattleIntegrator
+from .variables import KIND_VARIABLE, REFERENCE_ENERGY
 
-_CLASSES_BY_KIND: dict[int, type[StepProgram]] = {
+_CLASSES_BY_KIND: dict[int, type[_StepProgram]] = {
     cls._kind: cls for cls in (RattleIntegrator, AlphaRattleIntegrator)
 }
 
 
-def restore_integrator(integrator: mm.Integrator) -> StepProgram:
+def restore_integrator(integrator: mm.Integrator) -> RattleIntegrator | AlphaRattleIntegrator:
     """Give a deserialized or ``Context.getIntegrator()`` object its Python class back.
 
     ``XmlSerializer.deserialize`` and ``Context.getIntegrator`` return a plain
     ``openmm.CustomIntegrator``. This function recognises integrators made by this
-    package (by the global variable :data:`~.base.KIND_VARIABLE`) and changes the class of
+    package (by the global variable :data:`~.variables.KIND_VARIABLE`) and changes the class of
     the same object in place, so it stays bound to its context.
 
     Parameters
@@ -29,17 +30,18 @@ def restore_integrator(integrator: mm.Integrator) -> StepProgram:
 
     Returns
     -------
-    The same object, now an instance of :class:`~.alpha_rattle.AlphaRattleIntegrator` or
-    :class:`~.rattle.RattleIntegrator`.
+    The same object, now an instance of :class:`~.rattle.RattleIntegrator`,
+    :class:`~.alpha_rattle.AlphaRattleIntegrator` or (a program of the energy mode)
+    :class:`~.alpha_rattle.AlphaRattleEnergyIntegrator`.
 
     Raises
     ------
     TypeError
         If ``integrator`` was not made by this package.
     """
-    if isinstance(integrator, StepProgram):
+    if isinstance(integrator, _StepProgram):
         return integrator
-    kind = None
+    kind, names = None, []
     if isinstance(integrator, mm.CustomIntegrator):
         names = [integrator.getGlobalVariableName(i) for i in range(integrator.getNumGlobalVariables())]
         if KIND_VARIABLE in names:
@@ -49,5 +51,8 @@ def restore_integrator(integrator: mm.Integrator) -> StepProgram:
             f"{type(integrator).__name__} object was not created by openmm_alphaprk "
             f"(no global variable {KIND_VARIABLE!r} with a known value); cannot restore it."
         )
-    integrator.__class__ = _CLASSES_BY_KIND[kind]
-    return integrator
+    cls = _CLASSES_BY_KIND[kind]
+    if cls is AlphaRattleIntegrator and REFERENCE_ENERGY in names:
+        cls = AlphaRattleEnergyIntegrator
+    integrator.__class__ = cls
+    return integrator  # type: ignore[return-value]

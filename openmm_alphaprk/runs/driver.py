@@ -29,7 +29,6 @@ import openmm.unit as unit
 from tqdm import tqdm
 
 from ..integrators import check_context
-from ..integrators.names import IntegratorSpec, check_compatible, make_integrator, parse_integrator
 from ..systems import PreparedSystem, prepare_system
 from . import rundir
 from .checkpoints import (
@@ -43,6 +42,7 @@ from .checkpoints import (
     deferred_interrupt,
     interrupted,
 )
+from .integrator_names import IntegratorSpec, check_compatible, make_integrator, parse_integrator
 from .options import RunOptions
 from .summary import RunSummary, read_summary, summarize
 
@@ -81,7 +81,7 @@ def run_nve(
         A system name (``alphaprk systems``) or a :class:`~openmm_alphaprk.systems.PreparedSystem`.
     integrator
         ``rattle``, ``verlet``, ``energy`` or ``alpha=<number>``; see
-        :mod:`openmm_alphaprk.integrators.names`.
+        :mod:`openmm_alphaprk.runs.integrator_names`.
     output
         Run directory; created if missing. If it holds this run (same settings except
         ``steps``), the run resumes from its last checkpoint, or is extended to ``steps``.

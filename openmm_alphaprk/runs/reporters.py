@@ -18,7 +18,7 @@ import openmm.unit as unit
 
 from .._units import InputError, InputTypeError
 from ..integrators import AlphaRattleIntegrator, restore_integrator
-from ..integrators.controller import (
+from ..integrators.variables import (
     ALPHA,
     ALPHA_AT_BOUND,
     FELL_BACK,

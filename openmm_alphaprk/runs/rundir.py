@@ -32,8 +32,8 @@ import numpy as np
 from .._units import InputError
 
 if TYPE_CHECKING:
-    from ..integrators.names import IntegratorSpec
     from ..systems import PreparedSystem
+    from .integrator_names import IntegratorSpec
     from .options import RunOptions
 
 RUN_FORMAT = "openmm_alphaprk.run/1"

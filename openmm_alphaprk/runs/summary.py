@@ -11,8 +11,7 @@ import openmm as mm
 import openmm.app as app
 import openmm.unit as unit
 
-from ..integrators import AlphaRattleIntegrator, StepProgram
-from ..integrators.names import IntegratorSpec
+from ..integrators import AlphaRattleIntegrator, RattleIntegrator
 from ..observables import (
     VERLET_IS_LEAPFROG,
     EnergyDrift,
@@ -24,6 +23,7 @@ from ..observables import (
 )
 from ..systems import PreparedSystem
 from . import rundir
+from .integrator_names import IntegratorSpec
 from .reporters import read_controller_csv, summarize_controller
 
 
@@ -91,7 +91,11 @@ def summarize(
     momentum_change = {}
     if not prepared.system.usesPeriodicBoundaryConditions():  # isolated: P and L are invariants
         momentum_change = _momentum_change(prepared, state, output)
-    evaluations = integrator.force_evaluations_per_step if isinstance(integrator, StepProgram) else 1.0
+    evaluations = (
+        integrator.force_evaluations_per_step
+        if isinstance(integrator, (RattleIntegrator, AlphaRattleIntegrator))
+        else 1.0
+    )
     simulated_ns = steps_this_call * timestep_ps / 1000.0
     return RunSummary(
         system=prepared.name,

@@ -10,9 +10,9 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from .._units import InputError
-from ..integrators.names import IntegratorSpec, check_compatible, parse_integrator
 from ..observables import VERLET_IS_LEAPFROG, drift_text, equal_cost_divisor
 from ..runs import RunOptions, RunSummary, run_nve, rundir
+from ..runs.integrator_names import IntegratorSpec, check_compatible, parse_integrator
 from ..runs.reporters import EVERY_STEP
 from ..systems import PreparedSystem, load_definition, prepare_system
 

@@ -8,8 +8,8 @@ from collections.abc import Collection, Mapping
 
 import numpy as np
 
-from ..integrators import names
 from ..observables import DriftFit, drift_text, fit_drift, residual_statistics, rms
+from ..runs import integrator_names as names
 
 #: Title of the H − E_ref figure when none is given.
 RESIDUALS_TITLE = "Energy conservation: H − E_ref per integrator (NVE from the same start)"

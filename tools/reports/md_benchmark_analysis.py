@@ -106,7 +106,7 @@ def timing_table(system: str, steps: int = 30, rounds: int = 3) -> dict[str, dic
 
     from openmm_alphaprk.benchmarks.cost import interleaved_timing
     from openmm_alphaprk.integrators import check_context
-    from openmm_alphaprk.integrators.names import make_integrator
+    from openmm_alphaprk.runs.integrator_names import make_integrator
     from openmm_alphaprk.systems import prepare_system
 
     prepared = prepare_system(system, progress=False)

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from openmm_alphaprk.integrators.names import label as integrator_label
+from openmm_alphaprk.runs.integrator_names import label as integrator_label
 
 ROOT = Path(__file__).resolve().parents[2]
 CONFIG = ROOT / "docs" / "sweeps" / "md_benchmark.toml"

@@ -27,8 +27,8 @@ from pathlib import Path
 import openmm as mm
 import openmm.app as app
 
-from openmm_alphaprk.integrators.names import make_integrator
 from openmm_alphaprk.runs import AlphaControllerReporter
+from openmm_alphaprk.runs.integrator_names import make_integrator
 from openmm_alphaprk.systems import prepare_system
 
 NONE = "no reporter"

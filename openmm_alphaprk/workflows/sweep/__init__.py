@@ -41,7 +41,7 @@ Configuration::
     duration_ps = 2.0               # optional: any [run] key, for this grid only
 
 Times (duration, intervals) become the nearest whole number of steps of each step size,
-at least one. Integrator names are those of :mod:`openmm_alphaprk.integrators.names`; an integrator
+at least one. Integrator names are those of :mod:`openmm_alphaprk.runs.integrator_names`; an integrator
 name containing ``{alpha}`` is expanded over ``alphas``, the others are not.
 
 :mod:`.config` reads, checks and expands the configuration into cells; :mod:`.runner`

@@ -202,7 +202,7 @@ def _systems(grid: dict[str, Any], where: str) -> list[str]:
 
 def _integrators(grid: dict[str, Any], where: str) -> list[str]:
     """Return the grid's integrator names, ``{alpha}`` filled with each of ``alphas``, each checked."""
-    from ...integrators.names import parse_integrator
+    from ...runs.integrator_names import parse_integrator
 
     alphas = [str(_fraction(a, f"{where} alphas")) for a in grid.get("alphas", [])]
     integrators: list[str] = []

@@ -34,11 +34,9 @@ import openmm as mm
 import openmm.unit as unit
 
 from .._units import InputError
+from ..integrators import AlphaRattleIntegrator, IncompatibleSystemError, RattleIntegrator
 from ..observables import VERLET_IS_LEAPFROG
-from ..platforms import COMMON_PLATFORMS, massless_particles
-from .alpha_rattle import AlphaRattleIntegrator
-from .binding import IncompatibleSystemError
-from .rattle import RattleIntegrator
+from ..platforms import massless_particles
 
 
 @dataclass(frozen=True)
@@ -121,14 +119,15 @@ class IntegratorSpec:
     def supports_virtual_sites(self, platform: str) -> bool:
         """Tell whether the integrator is right for systems with virtual sites on ``platform``.
 
-        VerletIntegrator everywhere; RATTLE and α = 0 (order 2 or 4) on CUDA, OpenCL and
-        HIP, which place virtual sites at every constraint step; nothing else (α ≠ 0
-        takes a force at the unconstrained midpoint, where no platform places them).
+        VerletIntegrator everywhere; for this package's integrators their own answer
+        (:meth:`~openmm_alphaprk.RattleIntegrator.virtual_sites_refusal`): RATTLE and α = 0
+        (order 2 or 4) on CUDA, OpenCL and HIP, which place virtual sites at every
+        constraint step; nothing else (α ≠ 0 takes a force at the unconstrained midpoint,
+        where no platform places them).
         """
         if self.kind == "verlet":
             return True
-        at_constrained_positions = self.kind == "rattle" or (self.kind == "alpha" and self.alpha == 0.0)
-        return at_constrained_positions and platform in COMMON_PLATFORMS
+        return make_integrator(self, 0.002).virtual_sites_refusal(platform) is None
 
     @property
     def velocity_verlet(self) -> bool:
