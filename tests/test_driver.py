@@ -15,7 +15,7 @@ from openmm_alphaprk.runs.integrator_names import UnknownIntegratorError, make_i
 from openmm_alphaprk.runs.rundir import RunDirectoryError
 from openmm_alphaprk.systems import UnknownSystemError
 from openmm_alphaprk.workflows import compare
-from openmm_alphaprk.workflows.comparison import format_comparison_table
+from openmm_alphaprk.workflows.comparison import format_comparison_table, gain_line
 
 REFERENCE_RUN = dict(
     platform="Reference", energy_interval=2, trajectory_interval=4, checkpoint_interval=10, progress=False
@@ -490,3 +490,13 @@ def test_compare_without_equal_cost_runs_only_the_listed_integrators(cluster, tm
     )
     assert [s.integrator for s in result.summaries] == ["rattle", "energy4"]
     assert "at equal cost" not in result.table
+
+
+def test_the_equal_cost_line_says_a_loss_as_a_loss():
+    """A ratio below 1 is RATTLE at h/k doing better: the line says "higher", never "0.85x lower"."""
+    gain = {"integrator": "energy4", "rms_residual": 0.0938, "rattle_row": "rattle h/10", "k": 10}
+    assert gain_line(gain | {"rattle_rms_residual": 0.0798, "gain": 0.0798 / 0.0938}).endswith(
+        "0.0798: 1.18x higher: no gain at equal cost"
+    )
+    better = gain | {"rattle_rms_residual": 0.3752, "gain": 0.3752 / 0.0938}
+    assert gain_line(better).endswith("0.375: 4x lower")

@@ -162,11 +162,16 @@ def equal_cost_gains(summaries: Sequence[RunSummary]) -> list[dict]:
 
 
 def gain_line(gain: dict) -> str:
-    """Return the table's line for one energy-mode row's gain at equal cost."""
+    """Return the table's line for one energy-mode row's gain at equal cost (or its loss, said as such)."""
+    verdict = (
+        f"{gain['gain']:.3g}x lower"
+        if gain["gain"] >= 1
+        else f"{1 / gain['gain']:.3g}x higher: no gain at equal cost"
+    )
     return (
         f"{gain['integrator']} at equal cost: RMS|H - E_ref| {gain['rms_residual']:.3g} kJ/mol against "
         f"{gain['rattle_row']} ({gain['k']} RATTLE steps of h/{gain['k']} per step of h, the same force "
-        f"evaluations) {gain['rattle_rms_residual']:.3g}: {gain['gain']:.3g}x lower"
+        f"evaluations) {gain['rattle_rms_residual']:.3g}: {verdict}"
     )
 
 
