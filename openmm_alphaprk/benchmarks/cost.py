@@ -21,7 +21,7 @@ from functools import partial
 
 import openmm as mm
 
-from ..integrators import AlphaRattleIntegrator, RattleIntegrator, check_context
+from ..integrators import PACKAGE_INTEGRATORS, check_context
 from ..observables import energy_residuals, rms
 from ..runs.integrator_names import label, make_integrator
 from ..systems import PreparedSystem, build_water_box
@@ -199,14 +199,14 @@ def _energy_rms(box: PreparedSystem, integrator: mm.Integrator, context_args: tu
 
 def _force_evaluations(integrator: mm.Integrator) -> int | None:
     """Force evaluations counted by this package's integrators; None for others (one per step)."""
-    if isinstance(integrator, (RattleIntegrator, AlphaRattleIntegrator)):
+    if isinstance(integrator, PACKAGE_INTEGRATORS):
         return integrator.force_evaluations
     return None
 
 
 def _host_syncs(integrator: mm.Integrator) -> float:
     """Return the sums over degrees of freedom counted by our integrators (0 for others)."""
-    if isinstance(integrator, (RattleIntegrator, AlphaRattleIntegrator)):
+    if isinstance(integrator, PACKAGE_INTEGRATORS):
         return integrator.getGlobalVariableByName("host_syncs")
     return 0.0
 

@@ -35,9 +35,10 @@ from .pieces import (
     check_context,
 )
 from .rattle import RattleIntegrator
-from .restore import restore_integrator
+from .restore import PACKAGE_INTEGRATORS, restore_integrator
 
 __all__ = [
+    "PACKAGE_INTEGRATORS",
     "AlphaRattleEnergyIntegrator",
     "AlphaRattleIntegrator",
     "IncompatibleSystemError",

@@ -943,17 +943,16 @@ class AlphaRattleEnergyIntegrator(AlphaRattleIntegrator):
         }
 
     def _check_system(self, context: mm.Context) -> None:
-        """Energy mode: the default tolerance from the platform's precision, and the System's warnings."""
-        if self.energy_mode:
-            system = context.getSystem()
-            self._set_automatic_energy_tolerance(system.getNumParticles(), platforms.force_precision(context))
-            self._set_system_defaults(system.usesPeriodicBoundaryConditions())
-            warn_if_not_smooth(system)  # both point at the user's call
-            warn_if_state_changing(system)
+        """Set the default tolerance from the platform's precision, and give the System's warnings."""
+        system = context.getSystem()
+        self._set_automatic_energy_tolerance(system.getNumParticles(), platforms.force_precision(context))
+        self._set_system_defaults(system.usesPeriodicBoundaryConditions())
+        warn_if_not_smooth(system)  # both point at the user's call
+        warn_if_state_changing(system)
 
     def _check_before_steps(self, context: mm.Context | None) -> None:
         super()._check_before_steps(context)
-        if self.energy_mode and context is None:
+        if context is None:
             particles = int(self.getGlobalVariableByName(N_PARTICLES))
             self._set_automatic_energy_tolerance(particles, platforms.UNKNOWN_PRECISION)
 

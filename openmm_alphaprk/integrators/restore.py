@@ -10,9 +10,12 @@ from .pieces import _StepProgram
 from .rattle import RattleIntegrator
 from .variables import KIND_VARIABLE, REFERENCE_ENERGY
 
-_CLASSES_BY_KIND: dict[int, type[_StepProgram]] = {
-    cls._kind: cls for cls in (RattleIntegrator, AlphaRattleIntegrator)
-}
+#: This package's integrator classes (the energy mode's class is an AlphaRattleIntegrator):
+#: ``isinstance(integrator, PACKAGE_INTEGRATORS)`` tells an integrator that counts its force
+#: evaluations from one that does not (``openmm.VerletIntegrator``).
+PACKAGE_INTEGRATORS = (RattleIntegrator, AlphaRattleIntegrator)
+
+_CLASSES_BY_KIND: dict[int, type[_StepProgram]] = {cls._kind: cls for cls in PACKAGE_INTEGRATORS}
 
 
 def restore_integrator(integrator: mm.Integrator) -> RattleIntegrator | AlphaRattleIntegrator:

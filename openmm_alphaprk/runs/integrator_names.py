@@ -72,7 +72,8 @@ VOCABULARY = (
         "energy",
         2,
         "AlphaRattleIntegrator(alpha='energy'), alpha chosen per step to hold H at E_ref "
-        "(measured 6.6 force evaluations/step on a 2,661-atom water box, 12.2 on villin; CPU)",
+        "(a midpoint and an end force per trial of alpha, more where the midpoint iteration needs "
+        "them; the run's table gives the measured evaluations/step)",
     ),
     IntegratorName(
         "alpha4=<number>",
@@ -85,8 +86,8 @@ VOCABULARY = (
         "energy4",
         "energy",
         4,
-        "order=4 in the energy mode (measured 7.0 evaluations/step on a 2,661-atom water box, 9.4 on "
-        "villin; CPU)",
+        "order=4 in the energy mode (the first sub-step once, then the middle and last sub-steps "
+        "again for each trial of alpha)",
     ),
     IntegratorName("verlet", "verlet", 2, VERLET_IS_LEAPFROG),
 )

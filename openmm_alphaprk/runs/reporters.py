@@ -17,7 +17,7 @@ import openmm.app as app
 import openmm.unit as unit
 
 from .._units import InputError, InputTypeError
-from ..integrators import AlphaRattleIntegrator, restore_integrator
+from ..integrators import AlphaRattleEnergyIntegrator, restore_integrator
 from ..integrators.variables import (
     ALPHA,
     ALPHA_AT_BOUND,
@@ -93,7 +93,7 @@ class AlphaControllerReporter:
         self._out: io.TextIOBase | None = None
         self._writer = None
         self._owns_file = False
-        self._integrator: AlphaRattleIntegrator | None = None
+        self._integrator: AlphaRattleEnergyIntegrator | None = None
         self._variables: tuple[int, ...] = ()
 
     def describeNextReport(self, simulation: app.Simulation) -> dict:
@@ -116,7 +116,7 @@ class AlphaControllerReporter:
             integrator = restore_integrator(simulation.integrator)
         except TypeError:  # not one of this package's integrators
             integrator = simulation.integrator
-        if not isinstance(integrator, AlphaRattleIntegrator) or not integrator.energy_mode:
+        if not isinstance(integrator, AlphaRattleEnergyIntegrator):
             raise InputTypeError(
                 "AlphaControllerReporter needs an AlphaRattleIntegrator in the energy mode "
                 "(alpha='energy'); use openmm.app.StateDataReporter for other integrators."

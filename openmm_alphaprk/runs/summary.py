@@ -11,7 +11,7 @@ import openmm as mm
 import openmm.app as app
 import openmm.unit as unit
 
-from ..integrators import AlphaRattleIntegrator, RattleIntegrator
+from ..integrators import PACKAGE_INTEGRATORS, AlphaRattleEnergyIntegrator
 from ..observables import (
     VERLET_IS_LEAPFROG,
     EnergyDrift,
@@ -92,9 +92,7 @@ def summarize(
     if not prepared.system.usesPeriodicBoundaryConditions():  # isolated: P and L are invariants
         momentum_change = _momentum_change(prepared, state, output)
     evaluations = (
-        integrator.force_evaluations_per_step
-        if isinstance(integrator, (RattleIntegrator, AlphaRattleIntegrator))
-        else 1.0
+        integrator.force_evaluations_per_step if isinstance(integrator, PACKAGE_INTEGRATORS) else 1.0
     )
     simulated_ns = steps_this_call * timestep_ps / 1000.0
     return RunSummary(
@@ -143,7 +141,7 @@ def _controller(output: Path, integrator: mm.Integrator) -> dict:
     them) are the integrator's totals over every step; α* percentiles come from the
     rows of ``controller.csv``.
     """
-    if not isinstance(integrator, AlphaRattleIntegrator) or not integrator.energy_mode:
+    if not isinstance(integrator, AlphaRattleEnergyIntegrator):
         return {}
     path = output / rundir.CONTROLLER_FILE
     rows = read_controller_csv(path) if path.is_file() and path.stat().st_size else np.empty((0, 0))
