@@ -172,6 +172,45 @@ def _ar2_prediction(integrator: AlphaRattleIntegrator, series: str) -> float:
     return float(coefficients @ lags)
 
 
+def test_the_first_trial_is_centred_on_the_least_squares_fixed_alpha_of_past_steps(solute_in_vacuum):
+    """ᾱ = −Σλᵏ D0 S / Σλᵏ S², the fixed α that best cancels the past steps' energy changes.
+
+    Recomputed here from every step's D0 and S; where the predicted slope is zero (no
+    authority foreseen) the first trial takes ᾱ, not α = 0 (the uncorrected triple jump).
+    The minimum move that measures the slope changes H by about twice the tolerance at
+    the typical slope |S|, sqrt((1 − λ) Σλᵏ S²).
+    """
+    integrator = _energy_mode(4)
+    system, positions, velocities = solute_in_vacuum
+    context = make_context(system, integrator, positions, velocities, REFERENCE)  # noqa: F841 (keeps it bound)
+    lam = integrator.getGlobalVariableByName("predictor_forgetting")
+    d0_slope = slope_slope = 0.0
+    for _ in range(40):
+        integrator.step(1)
+        value = {
+            name: integrator.getGlobalVariableByName(name)
+            for name in ("first_residual", "start_residual", "first_alpha", "slope")
+        }
+        d0 = value["first_residual"] - value["start_residual"] - value["first_alpha"] * value["slope"]
+        d0_slope = lam * d0_slope + d0 * value["slope"]
+        slope_slope = lam * slope_slope + value["slope"] ** 2
+    typical = -d0_slope / slope_slope
+    assert abs(typical) > 1e-3  # distinguishable from α = 0
+    for name in ("slope_lag1", "slope_lag2"):
+        integrator.setGlobalVariableByName(name, 0.0)
+    integrator.step(1)
+    assert integrator.getGlobalVariableByName("use_prediction") == 1
+    assert integrator.getGlobalVariableByName("predicted_slope") == 0
+    assert integrator.getGlobalVariableByName("alpha_typical") == pytest.approx(typical, rel=1e-6)
+    assert integrator.getGlobalVariableByName("first_alpha") == pytest.approx(typical, rel=1e-6)
+    authority = np.sqrt((1 - lam) * slope_slope)
+    assert integrator.getGlobalVariableByName("slope_authority") == pytest.approx(authority, rel=1e-6)
+    tolerance = integrator.energy_tolerance.value_in_unit(unit.kilojoules_per_mole)
+    limits = [integrator.getGlobalVariableByName(name) for name in ("alpha_probe", "trust")]
+    probe = min(*limits, 2 * tolerance / authority)
+    assert integrator.getGlobalVariableByName("probe_size") == pytest.approx(probe, rel=1e-6)
+
+
 @pytest.mark.slow
 def test_order4_energy_mode_beats_every_fixed_alpha_of_a_scan_on_solvated_villin():
     """Villin in water from the shipped start, CPU platform, 150 steps.

@@ -31,10 +31,13 @@ controller runs entirely inside the ``CustomIntegrator`` step program, in one
    throwing α far would spoil the steps after it. The first trial's α is predicted
    (:meth:`AlphaRattleEnergyIntegrator._add_alpha_prediction`): the step's energy change
    at α = 0 and its slope S, fitted step by step as AR(2) series, give the α that
-   should land on E_ref; most steps on a water box need no second trial. The
-   second trial starts from the predicted slope and moves α by at least
-   ``alpha_probe`` so that the step measures its own slope (at a bound, where that
-   move would leave the interval, it probes inwards). Every move is limited to
+   should land on E_ref, found by a Newton step from ᾱ, the fixed α that best held
+   the energy over past steps; most steps on a water box need no second trial. The
+   second trial starts from the predicted slope and moves α by at least the probe
+   size (``alpha_probe``, or less where the typical slope says a smaller move
+   already measures S above the energy tolerance) so that the step measures its
+   own slope (at a bound, where that move would leave the interval, it probes
+   inwards). Every move is limited to
    ``max_alpha_change`` (at order 4 a limit that halves when α swings back and forth,
    see ``_add_trust_update``) and clipped to the α bounds. A new trial first solves
    x1 again with the new α and the last midpoint force, then goes on with step 2.
@@ -118,7 +121,7 @@ _PREDICTOR_STATE = tuple(
     f"{series}_{part}"
     for series in _PREDICTED_SERIES
     for part in ("lag1", "lag2", "g11", "g12", "g22", "b1", "b2")
-)
+) + ("fit_d0_slope", "fit_slope_slope")
 
 #: Relative energy change between steps below which a moved state counts as the same
 #: state (the common platform's reordering), unless the energy tolerance is larger.
@@ -172,10 +175,11 @@ class AlphaRattleIntegrator(_StepProgram):
         The midpoint iteration stops when the change that the last midpoint force
         makes to the next solve of x1, h²α ΔF/m, falls below this (nm, RMS per
         degree of freedom). Default 1e-10 nm for fixed α (symplectic to that
-        level). In the energy mode with a periodic box 1e-7 nm (order 2) or 1e-6 nm
+        level). In the energy mode with a periodic box 1e-7 nm (order 2) or 1e-5 nm
         (order 4, where α* is ~100× smaller), since there it only limits how well
         angular momentum is kept (ΔL ≈ 2hα δx_m × F per step), which a periodic box
-        does not conserve anyway; without a periodic box 1e-13 nm, set by
+        does not conserve anyway, and the energy is measured on the state the step
+        ends in whatever the midpoint; without a periodic box 1e-13 nm, set by
         :meth:`check_context`, which keeps angular momentum to round-off.
     max_midpoint_iterations
         Cap on midpoint force evaluations per step (in the energy mode summed over the
@@ -532,6 +536,9 @@ class AlphaRattleEnergyIntegrator(AlphaRattleIntegrator):
             PREDICTED_SLOPE,
             "use_prediction",
             "predictor_steps",
+            "alpha_typical",
+            "slope_authority",
+            "probe_size",
             *_PREDICTOR_STATE,
         ):
             self.addGlobalVariable(name, 0)
@@ -648,21 +655,39 @@ class AlphaRattleEnergyIntegrator(AlphaRattleIntegrator):
         from step to step; each is predicted by an AR(2) model, x_n ≈ a1 x_{n−1} + a2
         x_{n−2}, fitted by exponentially weighted least squares (forgetting factor
         ``predictor_forgetting``, a ridge of 1 % of the mean diagonal) over the
-        steps so far. The first trial then takes the damped Newton α for the
-        predicted r, within ``trust`` of the last α* and the bounds, and the second
-        trial (if any) starts from the predicted slope. Before ``predictor_warmup``
-        steps with a measured S the first trial keeps the last α*.
+        steps so far.
+
+        The same weights give ᾱ = −Σλ D0 S / Σλ S² (``alpha_typical``), the fixed α
+        that would have held the energy best over past steps, and the typical slope
+        S_typ = (Σ(1−λ)λ S²)^½ (``slope_authority``). The first trial takes the
+        Newton step from ᾱ, α = ᾱ − (r_start + D0 + ᾱ S) S / (S² + (d S_typ)²), within
+        ``trust`` of ᾱ and the bounds: where the predicted S is small the damping
+        keeps α near ᾱ rather than pulling it to 0. The probe size of the step is
+        min(``alpha_probe``, trust, 2·tolerance/S_typ): a move that changes the energy
+        by about twice the tolerance is enough to measure S. The second trial (if
+        any) starts from the predicted slope. Before ``predictor_warmup`` steps with
+        a measured S the first trial keeps the last α* and the probe is ``alpha_probe``
+        (limited by trust).
         """
         self.addComputeGlobal("start_residual", "end_energy - reference_energy")
         for series, variable in zip(_PREDICTED_SERIES, (PREDICTED_D0, PREDICTED_SLOPE)):
             self.addComputeGlobal(variable, _ar2_prediction(series))
         self.addComputeGlobal("use_prediction", "step(predictor_steps - predictor_warmup + 0.5)")
         self.addComputeGlobal(
+            "alpha_typical", "select(fit_slope_slope, -fit_d0_slope/fit_slope_slope, alpha_start)"
+        )
+        self.addComputeGlobal("slope_authority", "sqrt((1 - predictor_forgetting)*fit_slope_slope)")
+        self.addComputeGlobal(
+            "probe_size",
+            "min(min(alpha_probe, trust), select(use_prediction, sized, alpha_probe));"
+            "sized = max(2*energy_tolerance/(slope_authority + 1e-30), 1e-6)",
+        )
+        self.addComputeGlobal(
             "alpha",
             "select(use_prediction, min(max(limited, alpha_min), alpha_max), alpha);"
-            "limited = min(max(newton, alpha_start - trust), alpha_start + trust);"
-            "newton = -(start_residual + predicted_d0)*predicted_slope"
-            "/(predicted_slope^2 + (slope_damping*slope_scale)^2 + 1e-30)",
+            "limited = min(max(centred, alpha_typical - trust), alpha_typical + trust);"
+            "centred = alpha_typical - (start_residual + predicted_d0 + alpha_typical*predicted_slope)"
+            "*predicted_slope/(predicted_slope^2 + (slope_damping*slope_authority)^2 + 1e-30)",
         )
         self.addComputeGlobal("slope", "select(use_prediction, predicted_slope, slope)")
         self.addComputeGlobal("first_alpha", "alpha")
@@ -719,9 +744,13 @@ class AlphaRattleEnergyIntegrator(AlphaRattleIntegrator):
         """Secant step on r(α) with the in-step slope; bounded; decide whether to stop.
 
         Written with ``select``/``step`` so that no division by a vanishing slope
-        can reach α: the Newton step is −r S/(S² + ε), then limited and clipped.
+        can reach α: the Newton step is −r S/(S² + (d s)²), then limited and clipped.
+        The damping scale s is S̄ (``slope_scale``) once the step measured its own
+        slope or before the predictor's warm-up, else the typical slope of past steps
+        (``slope_authority``) for a move made with the predicted S. A secant counts
+        as a measurement when α moved by at least half the step's probe size.
         """
-        secant = "step(trials - 1.5)*step(abs(alpha - alpha_last) - 0.5*min(alpha_probe, trust))"
+        secant = "step(trials - 1.5)*step(abs(alpha - alpha_last) - 0.5*probe_size)"
         self.addComputeGlobal(
             "slope",
             "select(new_secant, (residual - residual_last)/(alpha - alpha_last), slope);"
@@ -740,9 +769,10 @@ class AlphaRattleEnergyIntegrator(AlphaRattleIntegrator):
             "clipped = min(max(alpha + change, alpha_min), alpha_max);"
             "change = select(slope_measured, limited, select(limited, probe_sized, probe));"
             "probe_sized = (2*step(limited) - 1)*max(abs(limited), probe);"
-            "probe = min(alpha_probe, trust);"
+            "probe = probe_size;"
             "limited = min(max(newton, -trust), trust);"
-            "newton = -residual*slope/(slope*slope + (slope_damping*slope_scale)^2 + 1e-30)",
+            "newton = -residual*slope/(slope*slope + (slope_damping*scale)^2 + 1e-30);"
+            "scale = select(slope_measured + 1 - use_prediction, slope_scale, slope_authority)",
         )
         self.addComputeGlobal(
             "controller_done",
@@ -780,6 +810,8 @@ class AlphaRattleEnergyIntegrator(AlphaRattleIntegrator):
         S is the in-step secant slope when the step took a second trial, else the
         slope the step assumed (the prediction; during the warm-up the last
         measured one); D0 = r₁ − r_start − α₁ S from the first trial's residual r₁.
+        The weighted sums Σλ D0 S and Σλ S² (the fit of ᾱ) are updated with the same
+        weights.
         """
         self.addComputeGlobal(
             "predictor_steps", "predictor_steps + (1 - midpoint_failed)*max(slope_measured, use_prediction)"
@@ -800,6 +832,8 @@ class AlphaRattleEnergyIntegrator(AlphaRattleIntegrator):
                 self.addComputeGlobal(name, f"select(midpoint_failed, {name}, {lam}*{name} + {term})")
             self.addComputeGlobal(lag2, f"select(midpoint_failed, {lag2}, {lag1})")
             self.addComputeGlobal(lag1, f"select(midpoint_failed, {lag1}, {x})")
+        for name, term in (("fit_d0_slope", "d0_lag1*slope_lag1"), ("fit_slope_slope", "slope_lag1^2")):
+            self.addComputeGlobal(name, f"select(midpoint_failed, {name}, {lam}*{name} + {term})")
 
     def _add_slope_scale_update(self) -> None:
         """S̄, the damping scale: a running geometric mean of the in-step slopes |S|.

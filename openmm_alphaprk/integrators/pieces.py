@@ -99,8 +99,8 @@ _NO_CHECK, _CHECK_REFUSING_MASSLESS, _CHECK_ALLOWING_MASSLESS = 0, 1, 2
 OUTER_H = f"({GAMMA1!r}*dt)"
 MIDDLE_H = f"({GAMMA2!r}*dt)"
 #: The largest midpoint change (nm, RMS per DOF) a step is accepted with once the
-#: iteration stopped: 1000 × the tolerance, and never below 1e-8 nm.
-ACCEPTED_MIDPOINT_CHANGE = "accepted = max(1000*midpoint_tolerance, 1e-8)"
+#: iteration stopped: 1000 × the tolerance, and never below 1e-8 nm nor above 1e-3 nm.
+ACCEPTED_MIDPOINT_CHANGE = "accepted = min(max(1000*midpoint_tolerance, 1e-8), 1e-3)"
 
 
 def first_forces(alpha: str) -> str:
