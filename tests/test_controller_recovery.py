@@ -14,7 +14,7 @@ import openmm as mm
 import openmm.app as app
 import openmm.unit as unit
 import pytest
-from conftest import REFERENCE, make_context, total_energy
+from conftest import REFERENCE, make_context, positions_of, total_energy, velocities_of
 
 from openmm_alphaprk import AlphaRattleIntegrator, RattleIntegrator, make_smooth
 from openmm_alphaprk.observables import energy_residuals, rms
@@ -232,3 +232,44 @@ def test_order4_energy_mode_beats_every_fixed_alpha_of_a_scan_on_solvated_villin
     fixed = {alpha: energy_rms(AlphaRattleIntegrator(0.002, alpha=alpha, order=4)) for alpha in alphas}
     energy_mode = energy_rms(AlphaRattleIntegrator(0.002, alpha="energy", order=4))
     assert energy_mode < min(fixed.values()), (energy_mode, fixed)
+
+
+def test_a_step_whose_last_trial_did_worse_ends_in_its_best_trial(solute_in_vacuum):
+    """Trial 1 at α = 0, trial 2 probes to α = 0.2 and misses far: the step keeps trial 1.
+
+    Trial 1 of the first step is triple-jump RATTLE (α = 0, no prediction yet), so the
+    kept state must be the fixed-α = 0 step's, and the force at it, computed again at
+    the next step's start, is counted.
+    """
+    system, positions, velocities = solute_in_vacuum
+    integrator = AlphaRattleIntegrator(
+        2 * unit.femtosecond,
+        alpha="energy",
+        order=4,
+        max_trials=2,
+        alpha_probe=0.2,
+        max_alpha_change=0.2,
+        energy_tolerance=1e-9,
+    )
+    context = make_context(system, integrator, positions, velocities, REFERENCE)
+    integrator.step(1)
+    value = {
+        name: integrator.getGlobalVariableByName(name)
+        for name in ("first_residual", "residual_last", "residual", "alpha_last", "restored_best")
+    }
+    assert value["alpha_last"] == pytest.approx(0.2)  # the premise: trial 2 probed to the bound ...
+    assert abs(value["residual_last"]) > 2 * abs(value["first_residual"])  # ... and missed far
+    assert value["restored_best"] == 1
+    assert value["residual"] == value["first_residual"]
+    assert integrator.alpha == 0
+    # the first sub-step, three per trial (trials at α = 0.2 after the first refine its midpoint), the restore
+    assert integrator.last_step_force_evaluations == 1 + 3 * integrator.trials + 1
+    assert integrator.controller_totals()["steps_restored"] == 1
+    reference_energy = integrator.getGlobalVariableByName("reference_energy")
+    assert total_energy(context) - reference_energy == pytest.approx(value["first_residual"], abs=1e-6)
+
+    triple_jump = AlphaRattleIntegrator(2 * unit.femtosecond, alpha=0.0, order=4)
+    expected = make_context(system, triple_jump, positions, velocities, REFERENCE)
+    triple_jump.step(1)
+    for get in (positions_of, velocities_of):
+        np.testing.assert_allclose(get(context), get(expected), rtol=0, atol=1e-10)

@@ -49,7 +49,9 @@ sub-step: three force evaluations per trial.
 α stops moving when the energy is within tolerance, when α sits at a bound and the
 root lies beyond it (the *fallback*: the best α inside the bounds), or after
 ``max_trials`` trials (also a fallback); ``max_midpoint_iterations`` caps the midpoint
-forces of a step. E_ref is never moved by the controller, so a residual left by a
+forces of a step. At order 4 a step whose last trial missed the tolerance and ended
+farther from E_ref than an earlier trial ends in that earlier trial's state (one more
+force evaluation, at the next step's start). E_ref is never moved by the controller, so a residual left by a
 fallback is corrected by later steps and cannot accumulate into drift. A non-finite
 residual or a midpoint iteration that ran away rejects the step (the context keeps
 the state at its start; ``step`` raises).
@@ -542,9 +544,15 @@ class AlphaRattleEnergyIntegrator(AlphaRattleIntegrator):
             *_PREDICTOR_STATE,
         ):
             self.addGlobalVariable(name, 0)
+        if order == 4:
+            best_trial = ("trial_better", "best_set", "residual_best", "alpha_best", "restored_best")
+            for name in (*best_trial, "steps_restored"):
+                self.addGlobalVariable(name, 0)
         # 0: the user chose it
         self.addGlobalVariable("midpoint_tolerance_automatic", float(settings.automatic_midpoint_tolerance))
-        for name in ("xend", "vend", "fmid_last") + (("xa", "va", "fa", "fstart_last") if order == 4 else ()):
+        for name in ("xend", "vend", "fmid_last") + (
+            ("xa", "va", "fa", "fstart_last", "xbest", "vbest") if order == 4 else ()
+        ):
             self.addPerDofVariable(name, 0)
 
     # ---------------------------------------------------------------- programs
@@ -593,6 +601,7 @@ class AlphaRattleEnergyIntegrator(AlphaRattleIntegrator):
             fstart_last="f",
         )
         self._add_order4_loop(self._add_trial_midpoint_force, trial_end=self._add_order4_trial_end)
+        self._add_best_trial_restore()
         self._add_controller_bookkeeping()
         self._add_trust_update()
         self._add_midpoint_end_step()
@@ -600,9 +609,57 @@ class AlphaRattleEnergyIntegrator(AlphaRattleIntegrator):
     def _add_order4_trial_end(self) -> None:
         """After the last sub-step of a trial: the trial's end; a new trial restarts the middle sub-step."""
         self._add_trial_end(next_start={"x0": "xa", "v0": "va", "fstart": "fa"})
+        self._add_best_trial_record()
         self.addComputeGlobal("phase", "select(restarting, 2, phase)")
         self.addComputeGlobal("hsub", f"select(restarting, {MIDDLE_H}, hsub)")
         self.addComputeGlobal("alpha_sub", "alpha*restarting")
+
+    def _add_best_trial_record(self) -> None:
+        """Keep the end state of the step's trial with the smallest |H − E_ref| so far (order 4).
+
+        Only a trial whose midpoint had converged (its last midpoint force changed x1
+        by less than ``midpoint_tolerance``) is a step of the method and may be kept.
+        ``x`` and ``v`` still hold the trial's end here (a restart only reset ``x0``,
+        ``v0``); ``alpha_last`` is the trial's α.
+        """
+        self.addComputeGlobal(
+            "trial_better",
+            "candidate*max(1 - kept, 1 - step(abs(residual) - abs(residual_best)));"
+            "kept = best_set*(1 - delta(trials - 1));"
+            "candidate = step(midpoint_tolerance - midpoint_change)",
+        )
+        self.addComputeGlobal("best_set", "max(best_set*(1 - delta(trials - 1)), trial_better)")
+        self.addComputeGlobal("residual_best", "select(trial_better, residual, residual_best)")
+        self.addComputeGlobal("alpha_best", "select(trial_better, alpha_last, alpha_best)")
+        self.addComputePerDof("xbest", "select(trial_better, x, xbest)")
+        self.addComputePerDof("vbest", "select(trial_better, v, vbest)")
+
+    def _add_best_trial_restore(self) -> None:
+        """End the step in its best trial's state where the last trial missed the tolerance and did worse.
+
+        A later trial can end farther from E_ref than an earlier one (a secant over a
+        slope that changed sign within the step, or one measured below the energy
+        noise); the step then keeps the earlier trial's x, v and α. The force at the
+        restored positions is computed again at the next step's start: one more
+        force evaluation, counted here. Positions are constrained once more (a no-op
+        on positions that already satisfy the constraints) so that the next step's
+        projection starts from the state it steps from.
+        """
+        self.addComputeGlobal(
+            "restored_best",
+            "(1 - midpoint_failed)*best_set*step(abs(residual) - energy_tolerance)"
+            "*(1 - step(abs(residual_best) - abs(residual)))",
+        )
+        self.addComputePerDof("x", "select(restored_best, xbest, x)")
+        self.addComputePerDof("v", "select(restored_best, vbest, v)")
+        self.addConstrainPositions()
+        self.addComputePerDof("xend", "x")
+        self.addComputePerDof("vend", "v")
+        self.addComputeGlobal("residual", "select(restored_best, residual_best, residual)")
+        self.addComputeGlobal("alpha", "select(restored_best, alpha_best, alpha)")
+        self.addComputeGlobal("end_energy", "residual + reference_energy")
+        self.addComputeGlobal("step_force_evaluations", "step_force_evaluations + restored_best")
+        self.addComputeGlobal("steps_restored", "steps_restored + restored_best")
 
     # ------------------------------------------------------------------ pieces
     def _add_reference_check(self) -> None:
@@ -952,7 +1009,9 @@ class AlphaRattleEnergyIntegrator(AlphaRattleIntegrator):
         Returns
         -------
         A dict with ``steps``, ``steps_within_tolerance``, ``steps_fallen_back``,
-        ``steps_at_bound``, ``reference_resets`` (counts), the fractions
+        ``steps_at_bound``, ``reference_resets``, ``steps_restored`` (order 4: steps
+        that ended in an earlier trial's state, see ``_add_best_trial_restore``; 0 at
+        order 2) (counts), the fractions
         ``fraction_within_tolerance`` and ``fraction_fallen_back``,
         ``force_evaluations_per_step``, and ``rms_residual`` and ``max_abs_residual``:
         RMS and maximum of H − E_ref after each step (kJ/mol; NaN before the first step),
@@ -964,6 +1023,8 @@ class AlphaRattleEnergyIntegrator(AlphaRattleIntegrator):
             name: int(self.getGlobalVariableByName(name))
             for name in ("steps_within_tolerance", "steps_fallen_back", "steps_at_bound", "reference_resets")
         }
+        restored = self.getGlobalVariableByName("steps_restored") if self.order == 4 else 0
+        totals["steps_restored"] = int(restored)
         fraction = (lambda n: n / steps) if steps else (lambda n: float("nan"))
         squares = self.getGlobalVariableByName("sum_residual_squared")
         return {

@@ -22,7 +22,7 @@ NAMES = (
     "residual start_residual first_residual first_alpha alpha alpha_start trials fell_back predicted_d0 "
     "predicted_slope slope slope_measured slope_scale trust use_prediction midpoint_iterations "
     "midpoint_change step_force_evaluations energy_tolerance midpoint_failed "
-    "alpha_typical slope_authority probe_size"
+    "alpha_typical slope_authority probe_size restored_best residual_best"
 ).split()
 
 
