@@ -84,6 +84,30 @@ def test_every_integrator_takes_the_reference_step(water_box, spec, name):
 
 
 @pytest.mark.parametrize("spec", configured())
+def test_a_step_ended_in_its_best_trial_continues_as_on_reference(water_box, spec):
+    """Order-4 energy mode whose steps keep trial 1 (α = 0.05) after trial 2 probed to 0.2.
+
+    The kept trial's midpoint force matters (α ≠ 0); the restore assigns positions
+    after the loop, and the next step projects from the restored state: all must
+    follow Reference on the platform.
+    """
+    results = []
+    for platform in ("Reference", spec):
+        integrator = AlphaRattleIntegrator(
+            H, "energy", order=4, max_trials=2, alpha_probe=0.2, max_alpha_change=0.2, energy_tolerance=1e-9
+        )
+        context = _context(water_box.system, integrator, platform, water_box.positions, water_box.velocities)
+        integrator.alpha = 0.05
+        for _ in range(3):
+            integrator.step(1)
+            assert integrator.getGlobalVariableByName("restored_best") == 1, platform
+            assert integrator.alpha == pytest.approx(0.05)
+        results.append(positions_of(context))
+    difference = np.max(np.abs(results[0] - results[1]))
+    assert difference < AGREEMENT[spec.partition(":")[2]], difference
+
+
+@pytest.mark.parametrize("spec", configured())
 def test_alpha_zero_is_rattle_on_the_platform(water_box, spec):
     """Bitwise where the platform repeats itself; else as close as RATTLE is to itself.
 

@@ -589,6 +589,12 @@ class AlphaRattleEnergyIntegrator(AlphaRattleIntegrator):
         # F(x0) is read before the reference check's energy: see _add_reference_check
         self._add_save_step_start(xstep="x", vstep="v", fstart="f")
         self._add_reference_check()
+        # the projection of the first sub-step must start from this state, which may be
+        # an earlier trial's (``_add_best_trial_restore``): constrain it once (a no-op on
+        # positions that satisfy the constraints) so that Reference/CPU project along it;
+        # placed before every position assignment in program text, it leaves the common
+        # platform's delta storage of positions as it was (§5a)
+        self.addConstrainPositions()
         self._add_first_outer_substep()
         self._add_controller_start()
         # the midpoint force's offset from the sub-step's start force changes little between steps
@@ -641,9 +647,10 @@ class AlphaRattleEnergyIntegrator(AlphaRattleIntegrator):
         slope that changed sign within the step, or one measured below the energy
         noise); the step then keeps the earlier trial's x, v and α. The force at the
         restored positions is computed again at the next step's start: one more
-        force evaluation, counted here. Positions are constrained once more (a no-op
-        on positions that already satisfy the constraints) so that the next step's
-        projection starts from the state it steps from.
+        force evaluation, counted here. No constraint step follows the restore: on the
+        common platform any ``addConstrainPositions`` after the midpoint assignment in
+        program text would make that assignment a stored displacement, unseen by the
+        midpoint force (§5a); the next step constrains its start state instead.
         """
         self.addComputeGlobal(
             "restored_best",
@@ -652,7 +659,6 @@ class AlphaRattleEnergyIntegrator(AlphaRattleIntegrator):
         )
         self.addComputePerDof("x", "select(restored_best, xbest, x)")
         self.addComputePerDof("v", "select(restored_best, vbest, v)")
-        self.addConstrainPositions()
         self.addComputePerDof("xend", "x")
         self.addComputePerDof("vend", "v")
         self.addComputeGlobal("residual", "select(restored_best, residual_best, residual)")
