@@ -271,5 +271,8 @@ def test_a_step_whose_last_trial_did_worse_ends_in_its_best_trial(solute_in_vacu
     triple_jump = AlphaRattleIntegrator(2 * unit.femtosecond, alpha=0.0, order=4)
     expected = make_context(system, triple_jump, positions, velocities, REFERENCE)
     triple_jump.step(1)
-    for get in (positions_of, velocities_of):
-        np.testing.assert_allclose(get(context), get(expected), rtol=0, atol=1e-10)
+    # to the constraint tolerance (1e-8 of 0.1 nm bonds; velocities: that over the 2.7 fs
+    # sub-step): the energy mode constrains each step's start state once more; trial 2
+    # (α = 0.2) ended ~1e-4 nm away
+    np.testing.assert_allclose(positions_of(context), positions_of(expected), rtol=0, atol=1e-9)
+    np.testing.assert_allclose(velocities_of(context), velocities_of(expected), rtol=0, atol=1e-6)
