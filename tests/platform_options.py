@@ -27,6 +27,11 @@ def with_precision(precision: str) -> list[str]:
     return [spec for spec in configured() if spec.endswith(f":{precision}")]
 
 
+def slow(specs: list[str]) -> list:
+    """``specs`` as parameters marked ``slow``: run with ``pytest -m slow``, not by default."""
+    return [pytest.param(spec, marks=pytest.mark.slow) for spec in specs]
+
+
 def available(name: str) -> bool:
     try:
         mm.Platform.getPlatformByName(name)
