@@ -275,6 +275,9 @@ def test_controller_reporter_writes_every_step_as_it_goes(water_box, tmp_path):
         ({"alpha": "energy", "energy_tolerance": -1e-3}, ValueError, "energy_tolerance must be positive"),
         ({"alpha": "energy", "energy_tolerance": 1 * unit.nanometers}, TypeError, "cannot be converted"),
         ({"alpha": "energy", "max_trials": 0}, ValueError, "positive integer"),
+        # measured: one trial per step kept α at 0 at both orders (RATTLE / triple jump at a higher cost)
+        ({"alpha": "energy", "max_trials": 1}, ValueError, "never moves alpha.*max_trials >= 2"),
+        ({"alpha": "energy", "order": 4, "max_trials": 1}, ValueError, "never moves alpha.*max_trials >= 2"),
         ({"alpha": "energy", "max_alpha_change": 0}, ValueError, "max_alpha_change must be positive"),
         ({"alpha": "energy", "alpha_probe": -0.1}, ValueError, "alpha_probe must be positive"),
         ({"alpha": "energy", "slope_damping": -0.5}, ValueError, "slope_damping must be >= 0"),

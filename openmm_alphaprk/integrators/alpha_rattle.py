@@ -202,7 +202,8 @@ class AlphaRattleIntegrator(_StepProgram):
         target inside the noise only buys trials that chase round-off.
     max_trials
         Energy mode: trials per step that may change α; after them α is frozen
-        and further trials only converge the midpoint force.
+        and further trials only converge the midpoint force. At least 2: only a
+        second trial measures the slope dH/dα that moves α.
     max_alpha_change
         Energy mode: the largest change of α one secant update may make (default 1
         at order 2, 0.05 at order 4).

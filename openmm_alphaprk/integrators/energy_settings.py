@@ -107,6 +107,14 @@ def controller_settings(
     )
     if settings.slope_damping < 0:
         raise InputError(f"slope_damping must be >= 0 (0 turns the damping off), got {slope_damping}.")
+    if settings.max_trials < 2:
+        raise InputError(
+            f"max_trials={max_trials} never moves alpha: only a second trial in a step measures "
+            "the slope dH/dalpha that moves it (order 2 starts each step at the last step's "
+            "alpha; order 4 predicts it from the slopes of past steps), so alpha would stay at "
+            "its start and the energy mode would be the fixed-alpha method at a higher cost. "
+            f"Use max_trials >= 2 (default {DEFAULT_MAX_TRIALS})."
+        )
     return settings
 
 
