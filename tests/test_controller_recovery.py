@@ -70,12 +70,39 @@ ORDER2_NOT_YET = pytest.mark.xfail(
 )
 
 
+@pytest.fixture(scope="module")
+def order4_energy_mode_on_the_water_box(water_box):
+    """H − E_ref and the controller's totals of 200 steps of ``energy4`` on the water box (Reference)."""
+    integrator = _energy_mode(4)
+    context = make_context(water_box.system, integrator, water_box.positions, water_box.velocities, REFERENCE)
+    return energy_residuals(context, integrator, 200).residuals, integrator.controller_totals()
+
+
 @pytest.mark.parametrize("order", [2, 4])
-def test_energy_modes_never_worse_than_rattle_on_a_water_box(water_box, order):
+def test_energy_modes_never_worse_than_rattle_on_a_water_box(water_box, order, request):
     args = (water_box.system, water_box.positions, water_box.velocities, 200, REFERENCE)
     rattle_rms, rattle_max = _rms_and_max(RattleIntegrator(2 * unit.femtosecond), *args)
-    rms, worst = _rms_and_max(_energy_mode(order), *args)
-    assert rms <= rattle_rms and worst <= rattle_max, (rms, rattle_rms, worst, rattle_max)
+    if order == 4:
+        residuals = request.getfixturevalue("order4_energy_mode_on_the_water_box")[0]
+        rms_, worst = rms(residuals), float(np.abs(residuals).max())
+    else:
+        rms_, worst = _rms_and_max(_energy_mode(order), *args)
+    assert rms_ <= rattle_rms and worst <= rattle_max, (rms_, rattle_rms, worst, rattle_max)
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="issue 20's goal of one trial on most steps is not met: measured 5.6 force evaluations "
+    "per step here (200 steps, Reference, tolerance 0.01 kJ/mol); docs/energy_mode.md, "
+    "'One trial per step: what the measurements allow'",
+)
+def test_order4_energy_mode_takes_at_most_4_5_force_evaluations_per_step_on_a_water_box(
+    order4_energy_mode_on_the_water_box,
+):
+    """One trial is 4 evaluations; ≤ 4.5 per step means a second trial on at most 1 step in 6."""
+    totals = order4_energy_mode_on_the_water_box[1]
+    assert totals["steps"] == 200
+    assert totals["force_evaluations_per_step"] <= 4.5, totals["force_evaluations_per_step"]
 
 
 @pytest.fixture(scope="module")
