@@ -200,7 +200,11 @@ def test_a_corrupted_prediction_is_recovered_without_throwing_alpha_to_its_bound
 
     integrator = _energy_mode(4)
     context = make_context(water_box.system, integrator, water_box.positions, water_box.velocities, CPU)
+    # the prediction starts after 20 steps with a measured slope (two or more trials); how many
+    # of the first 60 steps have one varies with the CPU platform's run-to-run round-off
     integrator.step(60)
+    while integrator.getGlobalVariableByName("use_prediction") != 1 and context.getStepCount() < 200:
+        integrator.step(10)
     assert integrator.getGlobalVariableByName("use_prediction") == 1
     reference = integrator.getGlobalVariableByName("reference_energy")
     prediction = _ar2_prediction(integrator, "slope")
