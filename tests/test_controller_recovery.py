@@ -58,10 +58,19 @@ def test_residual_beyond_alpha_authority_is_reduced_not_grown(water_box):
     assert residuals[-1] < 9.0, residuals[::10]
 
 
-def _rms_and_max(integrator: mm.Integrator, system, positions, velocities, steps: int, platform):
-    context = make_context(system, integrator, positions, velocities, platform)
-    residuals = energy_residuals(context, integrator, steps).residuals
+def _residuals_on(problem, integrator: mm.Integrator, steps: int) -> np.ndarray:
+    """H − E_ref after each of ``steps`` steps from ``problem`` (system, positions, velocities), Reference."""
+    system, positions, velocities = problem
+    context = make_context(system, integrator, positions, velocities, REFERENCE)
+    return energy_residuals(context, integrator, steps).residuals
+
+
+def _rms_and_max(residuals: np.ndarray) -> tuple[float, float]:
     return rms(residuals), float(np.abs(residuals).max())
+
+
+def _water(box) -> tuple:
+    return box.system, box.positions, box.velocities
 
 
 ORDER2_NOT_YET = pytest.mark.xfail(
@@ -74,15 +83,13 @@ ORDER2_NOT_YET = pytest.mark.xfail(
 def order4_energy_mode_on_the_water_box(water_box):
     """H − E_ref and the controller's totals of 200 steps of ``energy4`` on the water box (Reference)."""
     integrator = _energy_mode(4)
-    context = make_context(water_box.system, integrator, water_box.positions, water_box.velocities, REFERENCE)
-    return energy_residuals(context, integrator, 200).residuals, integrator.controller_totals()
+    return _residuals_on(_water(water_box), integrator, 200), integrator.controller_totals()
 
 
 @pytest.fixture(scope="module")
 def rattle_on_the_water_box(water_box):
     """RMS and max of H − E_ref over 200 RATTLE steps on the water box (Reference)."""
-    args = (water_box.system, water_box.positions, water_box.velocities, 200, REFERENCE)
-    return _rms_and_max(RattleIntegrator(2 * unit.femtosecond), *args)
+    return _rms_and_max(_residuals_on(_water(water_box), RattleIntegrator(2 * unit.femtosecond), 200))
 
 
 # order 2 over 200 steps is slow (a minute); test_energy_mode.py checks it over 60 steps by default
@@ -90,13 +97,12 @@ def rattle_on_the_water_box(water_box):
 def test_energy_modes_never_worse_than_rattle_on_a_water_box(
     water_box, order, request, rattle_on_the_water_box
 ):
-    args = (water_box.system, water_box.positions, water_box.velocities, 200, REFERENCE)
     rattle_rms, rattle_max = rattle_on_the_water_box
     if order == 4:
         residuals = request.getfixturevalue("order4_energy_mode_on_the_water_box")[0]
-        rms_, worst = rms(residuals), float(np.abs(residuals).max())
     else:
-        rms_, worst = _rms_and_max(_energy_mode(order), *args)
+        residuals = _residuals_on(_water(water_box), _energy_mode(order), 200)
+    rms_, worst = _rms_and_max(residuals)
     assert rms_ <= rattle_rms and worst <= rattle_max, (rms_, rattle_rms, worst, rattle_max)
 
 
@@ -137,12 +143,6 @@ def solute_in_vacuum():
     return system, state.getPositions(asNumpy=True), state.getVelocities(asNumpy=True)
 
 
-def _residuals_on(problem, integrator: mm.Integrator, steps: int) -> np.ndarray:
-    system, positions, velocities = problem
-    context = make_context(system, integrator, positions, velocities, REFERENCE)
-    return energy_residuals(context, integrator, steps).residuals
-
-
 @pytest.fixture(scope="module")
 def order4_energy_mode_on_the_solute(solute_in_vacuum):
     """H − E_ref of 300 steps of ``energy4`` on the solute (Reference: the same on every run).
@@ -163,8 +163,7 @@ def test_energy_modes_never_worse_than_rattle_on_a_solute_with_hbond_constraints
     else:
         residuals = _residuals_on(solute_in_vacuum, _energy_mode(order), steps)
     assert len(residuals) == len(rattle)
-    rms_, worst = rms(residuals), np.abs(residuals).max()
-    rattle_rms, rattle_worst = rms(rattle), np.abs(rattle).max()
+    (rms_, worst), (rattle_rms, rattle_worst) = _rms_and_max(residuals), _rms_and_max(rattle)
     assert rms_ <= rattle_rms and worst <= rattle_worst, (rms_, rattle_rms, worst, rattle_worst)
 
 
