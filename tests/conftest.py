@@ -4,15 +4,17 @@ from __future__ import annotations
 
 import os
 import re
+import warnings
 from pathlib import Path
 
 import numpy as np
 import openmm as mm
 import openmm.unit as unit
 import pytest
+from quick_systems import TEST_STATES, WATER_BOX, stored_water_box
 
 from openmm_alphaprk import observables
-from openmm_alphaprk.systems import CACHE_ENV, build_water_box
+from openmm_alphaprk.systems import CACHE_ENV, prepare_system
 
 REFERENCE = mm.Platform.getPlatformByName("Reference")
 
@@ -34,12 +36,19 @@ def temporary_systems_cache(tmp_path_factory):
 
 @pytest.fixture(scope="session")
 def water_box():
-    """~550-atom TIP3P box (1.8 nm, PME, 0.8 nm cutoff), equilibrated on Reference.
+    """~550-atom TIP3P box (1.8 nm, PME, 0.8 nm cutoff) from its stored start state (quick_systems.WATER_BOX).
 
-    The Reference platform makes the box the same on every run (the multithreaded
-    CPU platform's force sums are not bitwise reproducible).
+    If no stored state matches the definition, it is built (a minute) with a warning.
     """
-    return build_water_box(1.8, cutoff=0.8, equilibration_steps=300, seed=7, platform="Reference")
+    stored = stored_water_box()
+    if stored is not None:
+        return stored
+    warnings.warn(
+        f"no stored start state of the test water box in {TEST_STATES} matches its definition: building "
+        "it (a minute). `python tests/quick_systems.py` stores it again.",
+        stacklevel=2,
+    )
+    return prepare_system(WATER_BOX, use_cache=False)
 
 
 def make_context(system, integrator, positions, velocities, platform=REFERENCE):

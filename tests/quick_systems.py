@@ -1,13 +1,34 @@
-"""Helpers for tests: systems built with a shortened equilibration into a per-session cache."""
+"""Helpers for tests: the stored test water box, systems built with a shortened equilibration.
+
+``python tests/quick_systems.py`` builds the test water box (a minute on Reference) and
+stores its start state in ``tests/data/states`` again, after its definition or the
+builder changed.
+"""
 
 from __future__ import annotations
 
 import os
 import signal
+from pathlib import Path
 
 import openmm.app as app
 
-from openmm_alphaprk.systems import prepare_system
+from openmm_alphaprk.systems import PreparedSystem, prepare_system, water_box_definition
+from openmm_alphaprk.systems.shipped import load_shipped_state, write_shipped_state
+
+#: The tests' water box: ~550-atom TIP3P box (1.8 nm, PME, 0.8 nm cutoff), equilibrated on
+#: Reference, which makes it the same on every run (the multithreaded CPU platform's force
+#: sums are not bitwise reproducible).
+WATER_BOX = water_box_definition(1.8, cutoff=0.8, equilibration_steps=300, seed=7, platform="Reference")
+#: Where its start state is stored (the shipped-state format: ``NAME.xml.gz`` and ``NAME.json``).
+TEST_STATES = Path(__file__).parent / "data" / "states"
+
+
+def stored_water_box() -> PreparedSystem | None:
+    """The test water box from its stored start state (System made here), or None if none matches."""
+    shipped = load_shipped_state(WATER_BOX, TEST_STATES)
+    return None if shipped is None else PreparedSystem.from_shipped(WATER_BOX, shipped)
+
 
 #: Minimization and equilibration cut short: the build path is the real one, only shorter.
 QUICK = {"equilibration.minimize_max_iterations": 50, "equilibration.langevin_steps": 10}
@@ -44,3 +65,7 @@ class StopAt:
             os.kill(os.getpid(), signal.SIGINT)
         else:
             raise KeyboardInterrupt
+
+
+if __name__ == "__main__":
+    print(write_shipped_state(prepare_system(WATER_BOX, use_cache=False), TEST_STATES))

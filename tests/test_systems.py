@@ -13,7 +13,7 @@ import numpy as np
 import openmm as mm
 import openmm.unit as unit
 import pytest
-from quick_systems import QUICK, quick_system
+from quick_systems import QUICK, WATER_BOX, quick_system, stored_water_box
 
 from openmm_alphaprk import IncompatibleSystemError
 from openmm_alphaprk.runs import run_nve
@@ -22,6 +22,7 @@ from openmm_alphaprk.systems import (
     DefinitionError,
     ShippedStateWarning,
     UnknownSystemError,
+    build_water_box,
     default_cache_dir,
     find_shipped_state,
     list_systems,
@@ -134,6 +135,26 @@ def test_every_shipped_state_matches_its_definition_and_system():
             d = d.value_in_unit(unit.nanometers)
             assert abs(np.linalg.norm(x[j] - x[i]) - d) / d < 1e-7
             assert abs(np.dot(v[j] - v[i], x[j] - x[i])) < 1e-8
+
+
+def test_the_tests_water_box_starts_from_its_stored_state():
+    """A changed water-box definition or builder without `python tests/quick_systems.py` fails here."""
+    stored = stored_water_box()
+    assert stored is not None, "the test water box's stored state is stale: `python tests/quick_systems.py`"
+    assert stored.source == "shipped" and stored.name == "tip3p-box-1.8nm"
+    assert 500 < stored.n_atoms == stored.topology.getNumAtoms() == stored.system.getNumConstraints()  # rigid
+
+
+@pytest.mark.slow
+def test_the_tests_water_box_stored_state_is_its_build_bit_for_bit():
+    """Building the box (Reference: reproducible) gives the stored state exactly."""
+    built = build_water_box(1.8, cutoff=0.8, equilibration_steps=300, seed=7, platform="Reference")
+    assert built.definition == WATER_BOX and built.source == "built"
+    stored = stored_water_box()
+    assert np.array_equal(built.positions, stored.positions)
+    assert np.array_equal(built.velocities, stored.velocities)
+    assert built.state.getPeriodicBoxVectors() == stored.state.getPeriodicBoxVectors()
+    assert mm.XmlSerializer.serialize(built.system) == mm.XmlSerializer.serialize(stored.system)
 
 
 def test_changed_definition_is_built_not_started_from_the_shipped_state(tmp_path):

@@ -13,7 +13,7 @@ from .definitions import (
     load_definition,
 )
 from .shipped import ShippedStateWarning, find_shipped_state
-from .water_box import build_water_box
+from .water_box import build_water_box, water_box_definition
 
 __all__ = [
     "CACHE_ENV",
@@ -29,4 +29,5 @@ __all__ = [
     "list_systems",
     "load_definition",
     "prepare_system",
+    "water_box_definition",
 ]

@@ -25,7 +25,7 @@ import openmm.unit as unit
 
 from .build import BUILDER_VERSION, build_model, create_system, equilibrate
 from .definitions import SystemDefinition, definition_key, load_definition
-from .shipped import load_shipped_state
+from .shipped import ShippedState, load_shipped_state
 
 #: Environment variable that overrides the cache folder.
 CACHE_ENV = "ALPHAPRK_CACHE_DIR"
@@ -61,6 +61,20 @@ class PreparedSystem:
     state: mm.State
     path: Path | None = None
     source: str = "built"
+
+    @classmethod
+    def from_shipped(cls, definition: SystemDefinition, shipped: ShippedState) -> PreparedSystem:
+        """Return the system of ``definition`` started from its shipped state (``source="shipped"``)."""
+        return cls(
+            definition.name,
+            definition,
+            shipped.key,
+            shipped.topology,
+            shipped.system,
+            shipped.state,
+            shipped.path,
+            source="shipped",
+        )
 
     @property
     def from_cache(self) -> bool:
@@ -166,16 +180,7 @@ def _shipped_or_cached(
     """Return the shipped state of ``definition``, else its cache entry (if ``use_cache``), else None."""
     shipped = load_shipped_state(definition)
     if shipped is not None:
-        return PreparedSystem(
-            definition.name,
-            definition,
-            shipped.key,
-            shipped.topology,
-            shipped.system,
-            shipped.state,
-            shipped.path,
-            source="shipped",
-        )
+        return PreparedSystem.from_shipped(definition, shipped)
     path = cache_path(definition, cache_dir)
     if use_cache and (path / "state.xml").is_file():
         return _read(path, definition, system_key(definition))

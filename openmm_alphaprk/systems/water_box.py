@@ -13,7 +13,7 @@ import openmm.unit as unit
 
 from .._units import InputError, to_float
 from .cache import PreparedSystem, prepare_system
-from .definitions import parse_definition
+from .definitions import SystemDefinition, parse_definition
 
 #: Equilibration of :func:`build_water_box` (seed, temperature, steps and platform: its arguments).
 EQUILIBRATION = {
@@ -73,6 +73,40 @@ def build_water_box(
     study needs (with OpenMM's defaults the energy error of a water box is pairs
     crossing the cutoff, not the integrator's; see :mod:`openmm_alphaprk.smooth_forces`).
     """
+    return prepare_system(
+        water_box_definition(
+            box_size,
+            model=model,
+            cutoff=cutoff,
+            switch_distance=switch_distance,
+            ewald_error_tolerance=ewald_error_tolerance,
+            temperature=temperature,
+            equilibration_steps=equilibration_steps,
+            seed=seed,
+            platform=platform,
+        ),
+        use_cache=False,
+    )
+
+
+def water_box_definition(
+    box_size: unit.Quantity | float = 3.0,
+    *,
+    model: str = "tip3p",
+    cutoff: unit.Quantity | float = 0.9,
+    switch_distance: unit.Quantity | float | None = "auto",
+    ewald_error_tolerance: float = 1e-5,
+    temperature: unit.Quantity | float = 300.0,
+    equilibration_steps: int = 500,
+    seed: int = 2024,
+    platform: str = "CPU",
+) -> SystemDefinition:
+    """Return the definition :func:`build_water_box` builds (same arguments), named ``MODEL-box-EDGEnm``.
+
+    With it a caller can look for a stored start state of the box
+    (:func:`~openmm_alphaprk.systems.shipped.load_shipped_state` with a folder) before
+    spending the minimization and equilibration.
+    """
     edge = to_float(box_size, unit.nanometers, "box_size", positive=True)
     rc = to_float(cutoff, unit.nanometers, "cutoff", positive=True)
     # the ranges (cutoff below half the edge, switch below the cutoff) are parse_definition's checks
@@ -80,8 +114,7 @@ def build_water_box(
     kelvin = to_float(temperature, unit.kelvin, "temperature", positive=True)
     equilibration = {**EQUILIBRATION, "seed": int(seed), "temperature_K": kelvin, "platform": platform}
     equilibration["langevin_steps"] = int(equilibration_steps)
-    definition = parse_definition({"build": build, "equilibration": equilibration}, f"{model}-box-{edge:g}nm")
-    return prepare_system(definition, use_cache=False)
+    return parse_definition({"build": build, "equilibration": equilibration}, f"{model}-box-{edge:g}nm")
 
 
 def _build_table(model: str, edge: float, cutoff: float, switch: float | None, ewald: object) -> dict:
