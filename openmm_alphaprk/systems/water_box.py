@@ -1,7 +1,8 @@
 """Water boxes of any size, built by the same builder as the named systems (not cached).
 
-:func:`build_water_box` turns its arguments into a ``water_box`` definition and runs
-it through :func:`~openmm_alphaprk.systems.prepare_system` without the cache: the
+:func:`water_box_definition` turns its arguments into a ``water_box`` definition and
+:func:`build_water_box` runs it through :func:`~openmm_alphaprk.systems.prepare_system`
+without the cache: the
 boxes of the tests and benchmarks and the named boxes (``tip3p-3nm`` …) come from one
 builder, ForceField + Modeller, :func:`~openmm_alphaprk.make_smooth`'s settings and
 the same minimization and Langevin protocol.
@@ -24,7 +25,31 @@ EQUILIBRATION = {
 }
 
 
-def build_water_box(
+def build_water_box(box_size: unit.Quantity | float = 3.0, **options: object) -> PreparedSystem:
+    """Build, minimize and briefly equilibrate a cubic box of rigid water with PME.
+
+    The box of :func:`water_box_definition` with the same arguments (``box_size``,
+    ``model``, ``cutoff``, ``switch_distance``, ``ewald_error_tolerance``,
+    ``temperature``, ``equilibration_steps``, ``seed``, ``platform``), built without
+    the cache.
+
+    Returns
+    -------
+    PreparedSystem
+        With ``removeCMMotion=False`` (NVE bookkeeping), constrained positions and
+        velocities satisfying the velocity constraints (``.positions`` in nm and
+        ``.velocities`` in nm/ps as arrays).
+
+    Notes
+    -----
+    The defaults make the forces smooth at the cutoff, as an energy-conservation
+    study needs (with OpenMM's defaults the energy error of a water box is pairs
+    crossing the cutoff, not the integrator's; see :mod:`openmm_alphaprk.smooth_forces`).
+    """
+    return prepare_system(water_box_definition(box_size, **options), use_cache=False)
+
+
+def water_box_definition(
     box_size: unit.Quantity | float = 3.0,
     *,
     model: str = "tip3p",
@@ -35,8 +60,12 @@ def build_water_box(
     equilibration_steps: int = 500,
     seed: int = 2024,
     platform: str = "CPU",
-) -> PreparedSystem:
-    """Build, minimize and briefly equilibrate a cubic box of rigid water with PME.
+) -> SystemDefinition:
+    """Return the definition of a cubic PME box of rigid water, named ``MODEL-box-EDGEnm``.
+
+    :func:`build_water_box` builds it; with the definition alone a caller can look for a
+    stored start state of the box (:func:`~openmm_alphaprk.systems.shipped.load_shipped_state`
+    with a folder) before spending the minimization and equilibration.
 
     Parameters
     ----------
@@ -60,52 +89,13 @@ def build_water_box(
     platform
         OpenMM platform used for the set-up.
 
-    Returns
-    -------
-    PreparedSystem
-        With ``removeCMMotion=False`` (NVE bookkeeping), constrained positions and
-        velocities satisfying the velocity constraints (``.positions`` in nm and
-        ``.velocities`` in nm/ps as arrays).
-
-    Notes
-    -----
-    The defaults make the forces smooth at the cutoff, as an energy-conservation
-    study needs (with OpenMM's defaults the energy error of a water box is pairs
-    crossing the cutoff, not the integrator's; see :mod:`openmm_alphaprk.smooth_forces`).
-    """
-    return prepare_system(
-        water_box_definition(
-            box_size,
-            model=model,
-            cutoff=cutoff,
-            switch_distance=switch_distance,
-            ewald_error_tolerance=ewald_error_tolerance,
-            temperature=temperature,
-            equilibration_steps=equilibration_steps,
-            seed=seed,
-            platform=platform,
-        ),
-        use_cache=False,
-    )
-
-
-def water_box_definition(
-    box_size: unit.Quantity | float = 3.0,
-    *,
-    model: str = "tip3p",
-    cutoff: unit.Quantity | float = 0.9,
-    switch_distance: unit.Quantity | float | None = "auto",
-    ewald_error_tolerance: float = 1e-5,
-    temperature: unit.Quantity | float = 300.0,
-    equilibration_steps: int = 500,
-    seed: int = 2024,
-    platform: str = "CPU",
-) -> SystemDefinition:
-    """Return the definition :func:`build_water_box` builds (same arguments), named ``MODEL-box-EDGEnm``.
-
-    With it a caller can look for a stored start state of the box
-    (:func:`~openmm_alphaprk.systems.shipped.load_shipped_state` with a folder) before
-    spending the minimization and equilibration.
+    Raises
+    ------
+    InputError
+        For a non-positive length, temperature or tolerance, or a ``switch_distance``
+        that is no length, None or "auto"; its subclass
+        :class:`~openmm_alphaprk.systems.DefinitionError` for a cutoff of half the edge
+        or more, or a switch at or beyond the cutoff.
     """
     edge = to_float(box_size, unit.nanometers, "box_size", positive=True)
     rc = to_float(cutoff, unit.nanometers, "cutoff", positive=True)
