@@ -13,7 +13,6 @@ import openmm.unit as unit
 from .._units import InputError, InputTypeError, to_dimensionless, to_float
 from ..observables import positive_int
 
-DEFAULT_MAX_TRIALS = 3
 DEFAULT_SLOPE_DAMPING = 0.5
 #: Default midpoint tolerance (nm) of the energy mode without a periodic box, where angular
 #: momentum is conserved: iterated to this, the midpoint keeps it to round-off.
@@ -59,21 +58,31 @@ class ControllerDefaults:
     water at 2 fs; a large excursion of α turns the step into a poor second-order
     one, so the interval and the moves are small. The midpoint tolerance can be
     looser at order 4 because a midpoint error δ changes angular momentum by
-    ≈ 2hα δ × F per step, and α is ~100× smaller.
+    ≈ 2hα δ × F per step, and α is ~100× smaller. Order 4 allows one more trial:
+    after the first, a trial is short (one force evaluation instead of three).
     """
 
     alpha_bounds: tuple[float, float]
     max_alpha_change: float
     alpha_probe: float
     midpoint_tolerance: float  # nm, RMS per DOF
+    max_trials: int
 
 
 CONTROLLER_DEFAULTS = {
     2: ControllerDefaults(
-        alpha_bounds=(-0.5, 1.5), max_alpha_change=1.0, alpha_probe=0.05, midpoint_tolerance=1e-7
+        alpha_bounds=(-0.5, 1.5),
+        max_alpha_change=1.0,
+        alpha_probe=0.05,
+        midpoint_tolerance=1e-7,
+        max_trials=3,
     ),
     4: ControllerDefaults(
-        alpha_bounds=(-0.2, 0.2), max_alpha_change=0.05, alpha_probe=0.005, midpoint_tolerance=1e-5
+        alpha_bounds=(-0.2, 0.2),
+        max_alpha_change=0.05,
+        alpha_probe=0.005,
+        midpoint_tolerance=1e-5,
+        max_trials=4,
     ),
 }
 
@@ -82,7 +91,7 @@ def controller_settings(
     order: int,
     alpha_bounds: tuple[float, float] | None,
     energy_tolerance: unit.Quantity | float | None,
-    max_trials: int,
+    max_trials: int | None,
     max_alpha_change: float | None,
     alpha_probe: float | None,
     slope_damping: float,
@@ -93,6 +102,7 @@ def controller_settings(
     alpha_bounds = defaults.alpha_bounds if alpha_bounds is None else alpha_bounds
     max_alpha_change = defaults.max_alpha_change if max_alpha_change is None else max_alpha_change
     alpha_probe = defaults.alpha_probe if alpha_probe is None else alpha_probe
+    max_trials = defaults.max_trials if max_trials is None else max_trials
     settings = ControllerSettings(
         check_alpha_bounds(alpha_bounds),
         None
@@ -113,7 +123,7 @@ def controller_settings(
             "the slope dH/dalpha that moves it (order 2 starts each step at the last step's "
             "alpha; order 4 predicts it from the slopes of past steps), so alpha would stay at "
             "its start and the energy mode would be the fixed-alpha method at a higher cost. "
-            f"Use max_trials >= 2 (default {DEFAULT_MAX_TRIALS})."
+            f"Use max_trials >= 2 (default {defaults.max_trials} at order {order})."
         )
     return settings
 

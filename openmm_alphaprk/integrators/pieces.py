@@ -406,22 +406,34 @@ class _StepProgram(mm.CustomIntegrator):
         self.addComputeGlobal("previous_midpoint_change", "1e30")
 
     def _add_order4_loop(
-        self, midpoint_force: Callable[[str, str], None], trial_end: Callable[[], None] | None = None
+        self,
+        midpoint_force: Callable[[str, str], None],
+        trial_end: Callable[[], None] | None = None,
+        substep_end: Callable[[], None] | None = None,
     ) -> None:
         """Add the loop of α-RATTLE-4's last two sub-steps, after :meth:`_add_inner_substeps_start`.
 
         Each pass solves the current sub-step's positions; a finished sub-step takes its
-        velocity update and starts the next one; ``trial_end`` (the energy mode) runs
-        once both are done; the midpoint block comes last (rule 1), with
-        ``midpoint_force(h, alpha)`` of the sub-step.
+        velocity update, runs ``substep_end`` (the energy mode: the energy there) and
+        starts the next one; ``trial_end`` (the energy mode) runs where the global
+        ``trial_ready`` is set; the midpoint block comes last (rule 1), with
+        ``midpoint_force(h, alpha)`` of the sub-step. With ``trial_end`` each pass first
+        constrains x0, the sub-step's start: a no-op on its positions that makes them
+        the reference of the solve that follows on both semantics (rule 2), whichever
+        block ran last.
         """
         self.beginWhileBlock("phase < 3.5")
+        if trial_end is not None:
+            self.addComputePerDof("x", "x0")
+            self.addConstrainPositions()
         self._add_substep_solve(fallback="xstep")
         self.beginIfBlock("substep_done > 0.5")
         self._add_substep_end(fallback="vstep")
+        if substep_end is not None:
+            substep_end()
         self.endBlock()
         if trial_end is not None:
-            self.beginIfBlock("phase > 3.5")
+            self.beginIfBlock("trial_ready > 0.5")
             trial_end()
             self.endBlock()
         self.beginIfBlock("need_midpoint > 0.5")
