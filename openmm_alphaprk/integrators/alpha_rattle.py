@@ -904,17 +904,17 @@ class AlphaRattleEnergyIntegrator(AlphaRattleIntegrator):
         self._add_midpoint_evaluation(h, alpha)
         self.addComputeGlobal("need_midpoint", "0")
 
-    def _add_trial_end(
-        self, next_start: dict[str, str], residual: str = "energy + kinetic_energy - reference_energy"
-    ) -> None:
+    def _add_trial_end(self, next_start: dict[str, str], residual: str | None = None) -> None:
         """Residual of the trial, the next α, and either the end of the step or a new trial.
 
-        A new trial restarts the α sub-step from ``next_start`` (the state after the
-        first sub-step at order 4) and goes straight to its midpoint block, which
-        solves x1 with the new α before taking the midpoint force.
+        ``residual``: its expression where the caller measured the energy (order 4),
+        else H − E_ref at the current state. A new trial restarts the α sub-step from
+        ``next_start`` (the state after the first sub-step at order 4) and goes to its
+        midpoint block, which solves x1 with the new α before taking the midpoint force.
         """
-        if residual == "energy + kinetic_energy - reference_energy":
+        if residual is None:
             self._add_sum("kinetic_energy", "0.5*m*v*v")
+            residual = "energy + kinetic_energy - reference_energy"
         self.addComputeGlobal("residual", residual)
         self.addComputeGlobal("trials", "trials + 1 - completing")
         self.addComputeGlobal("first_residual", "select(delta(trials - 1), residual, first_residual)")
@@ -1140,7 +1140,12 @@ class AlphaRattleEnergyIntegrator(AlphaRattleIntegrator):
 
     @property
     def trials(self) -> int:
-        """Trials of α in the last step (two force evaluations each)."""
+        """Trials of α in the last step.
+
+        Order 2: a midpoint and an end force each (more where the midpoint needs them).
+        Order 4: the first takes three force evaluations, a short one one; taking the last
+        sub-step once α stopped (one more) is not counted as a trial.
+        """
         return int(self.getGlobalVariableByName(TRIALS))
 
     def controller_totals(self) -> dict[str, float]:
