@@ -740,7 +740,8 @@ class AlphaRattleEnergyIntegrator(AlphaRattleIntegrator):
         )
         self.addComputeGlobal(
             "reuse_midpoint",
-            "restarting*short_trials*step(midpoint_tolerance - midpoint_change - stale_midpoint_change)",
+            "restarting*short_trials*use_prediction"
+            "*step(midpoint_tolerance - midpoint_change - stale_midpoint_change)",
         )
         self.addComputeGlobal("need_midpoint", "restarting*(1 - reuse_midpoint)")
         self.addComputeGlobal("midpoint_change", "midpoint_change + reuse_midpoint*stale_midpoint_change")
@@ -959,7 +960,8 @@ class AlphaRattleEnergyIntegrator(AlphaRattleIntegrator):
         self.addComputeGlobal(
             "alpha_next",
             "select(frozen, alpha, min(max(moved, alpha_min), alpha_max));"
-            "frozen = max(step(energy_tolerance - abs(residual)), step(trials - max_trials + 0.5));"
+            "frozen = max(step(energy_tolerance - abs(residual)), step(trials - trial_cap + 0.5));"
+            f"trial_cap = {self._trial_cap()};"
             "moved = select(slope_measured + 1 - delta(clipped - alpha), clipped, inwards);"
             "inwards = alpha - outward*probe;"
             "outward = 2*step(change) - 1;"
@@ -979,6 +981,17 @@ class AlphaRattleEnergyIntegrator(AlphaRattleIntegrator):
             "capped = step(midpoint_iterations - max_midpoint_iterations + 0.5);"
             "stays = 1 - step(abs(alpha_next - alpha) - 1e-12)",
         )
+
+    def _trial_cap(self) -> str:
+        """Return the cap on a step's trials: ``max_trials``; at order 4 at most 3 during the warm-up.
+
+        During the predictor's warm-up every trial is full and a step starts at the last
+        step's α*, so a step that carried α far passes it on to the next; a fourth trial
+        let it reach a bound (docs/energy_mode.md, "Short trials").
+        """
+        if self.order == 4:
+            return "select(use_prediction, max_trials, min(max_trials, 3))"
+        return "max_trials"
 
     def _add_controller_bookkeeping(self) -> None:
         """Per-step diagnostics and totals."""
