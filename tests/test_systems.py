@@ -231,7 +231,14 @@ def _start(name: str, cache):
     return quick_system(name, cache)
 
 
-@pytest.mark.parametrize("name", sorted(EXPECTED))
+#: Systems whose quick build takes long and that differ from a default-suite system only in size.
+LARGE = {"tip3p-4nm"}
+
+
+@pytest.mark.parametrize(
+    "name",
+    [pytest.param(name, marks=pytest.mark.slow) if name in LARGE else name for name in sorted(EXPECTED)],
+)
 def test_every_system_runs_every_integrator(name, cache, tmp_path):
     prepared = _start(name, cache)
     for integrator in INTEGRATORS:
