@@ -6,8 +6,10 @@ from .integrators import (
     IncompatibleSystemError,
     MidpointConvergenceError,
     RattleIntegrator,
+    RattleRescaleIntegrator,
     SystemSizeError,
     TimestepUnitWarning,
+    VelocityRescaleError,
     restore_integrator,
 )
 from .nve import StateChangingForceWarning, prepare_for_nve, state_changing_forces
@@ -21,10 +23,12 @@ __all__ = [
     "MidpointConvergenceError",
     "NonSmoothForcesWarning",
     "RattleIntegrator",
+    "RattleRescaleIntegrator",
     "StartBlowUpError",
     "StateChangingForceWarning",
     "SystemSizeError",
     "TimestepUnitWarning",
+    "VelocityRescaleError",
     "make_smooth",
     "prepare_for_nve",
     "restore_integrator",

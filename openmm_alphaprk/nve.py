@@ -163,14 +163,16 @@ def _remove_unapplied_forces(system: mm.System) -> list[str]:
     return removed[::-1]
 
 
-def warn_if_state_changing(system: mm.System, stacklevel: int | None = None) -> bool:
+def warn_if_state_changing(
+    system: mm.System, stacklevel: int | None = None, who: str = "the energy-preserving mode"
+) -> bool:
     """Issue one :class:`StateChangingForceWarning` listing every :func:`state_changing_forces` entry, if any.
 
     Parameters
     ----------
     system
         The System an energy-mode integrator is about to run.
-    stacklevel
+    stacklevel, who
         As for :func:`warn_if_not_smooth`.
 
     Returns
@@ -181,7 +183,7 @@ def warn_if_state_changing(system: mm.System, stacklevel: int | None = None) -> 
     """
     forces = state_changing_forces(system)
     heading = (
-        f"the energy-preserving mode runs NVE; {len(forces)} force(s) of this System change the state "
+        f"{who} runs NVE; {len(forces)} force(s) of this System change the state "
         "between steps and are not applied"
     )
     return warn_listing(forces, heading, "openmm_alphaprk.nve", StateChangingForceWarning, stacklevel)

@@ -218,7 +218,9 @@ def apply_build_settings(
             force.setEwaldErrorTolerance(ewald_error_tolerance)
 
 
-def warn_if_not_smooth(system: mm.System, stacklevel: int | None = None) -> bool:
+def warn_if_not_smooth(
+    system: mm.System, stacklevel: int | None = None, who: str = "the energy-preserving mode"
+) -> bool:
     """Issue one :class:`NonSmoothForcesWarning` listing every :func:`smoothness_problems` entry, if any.
 
     Parameters
@@ -230,6 +232,8 @@ def warn_if_not_smooth(system: mm.System, stacklevel: int | None = None) -> bool
         line that calls it). None (the default) points at the first frame outside
         this package and OpenMM: the user's ``integrator.step(...)`` or
         ``simulation.step(...)``.
+    who
+        The integrator that needs them, as the warning names it.
 
     Returns
     -------
@@ -238,7 +242,7 @@ def warn_if_not_smooth(system: mm.System, stacklevel: int | None = None) -> bool
 
     """
     problems = smoothness_problems(system)
-    heading = f"the energy-preserving mode needs smooth forces; {len(problems)} problem(s) found"
+    heading = f"{who} needs smooth forces; {len(problems)} problem(s) found"
     return warn_listing(
         problems, heading, "openmm_alphaprk.smooth_forces", NonSmoothForcesWarning, stacklevel
     )

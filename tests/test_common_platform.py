@@ -21,6 +21,7 @@ from openmm_alphaprk import (
     AlphaRattleIntegrator,
     IncompatibleSystemError,
     RattleIntegrator,
+    RattleRescaleIntegrator,
 )
 from openmm_alphaprk.observables import energy_residuals
 from openmm_alphaprk.systems import build_water_box
@@ -28,6 +29,7 @@ from openmm_alphaprk.systems import build_water_box
 H = 0.002
 INTEGRATORS = {
     "rattle": lambda: RattleIntegrator(H),
+    "rattle+rescale": lambda: RattleRescaleIntegrator(H),
     "alpha=0": lambda: AlphaRattleIntegrator(H, 0.0),
     "alpha=1/6": lambda: AlphaRattleIntegrator(H, 1 / 6),
     "alpha=1/2": lambda: AlphaRattleIntegrator(H, 0.5),

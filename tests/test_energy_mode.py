@@ -338,9 +338,17 @@ def test_energy_mode_options_with_a_fixed_alpha_are_refused():
 
 
 def test_the_class_diagram_has_at_most_three_levels():
-    """Every class below openmm.CustomIntegrator is an integrator, but the private base; three levels."""
-    from openmm_alphaprk import AlphaRattleEnergyIntegrator
+    """Every class below openmm.CustomIntegrator is an integrator, but the private base; three levels.
 
-    for cls in (RattleIntegrator, AlphaRattleIntegrator, AlphaRattleEnergyIntegrator):
+    Beside them only the E_ref trait of the integrators that hold the energy (not an
+    integrator, and not a level: it derives from object).
+    """
+    from openmm_alphaprk import AlphaRattleEnergyIntegrator, RattleRescaleIntegrator
+    from openmm_alphaprk.integrators.reference_energy import _ReferenceEnergy
+
+    for cls in (RattleIntegrator, RattleRescaleIntegrator, AlphaRattleIntegrator, AlphaRattleEnergyIntegrator):
         ours = [c for c in cls.__mro__ if c.__module__.startswith("openmm_alphaprk")]
-        assert len(ours) <= 3, ours
+        levels = [c for c in ours if issubclass(c, mm.CustomIntegrator)]
+        assert len(levels) <= 3, levels
+        assert set(ours) - set(levels) <= {_ReferenceEnergy}, ours
+        assert _ReferenceEnergy.__bases__ == (object,)

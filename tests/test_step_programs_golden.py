@@ -14,12 +14,13 @@ from pathlib import Path
 
 import openmm as mm
 
-from openmm_alphaprk import AlphaRattleIntegrator, RattleIntegrator
+from openmm_alphaprk import AlphaRattleIntegrator, RattleIntegrator, RattleRescaleIntegrator
 
 GOLDEN = Path(__file__).parent / "golden" / "step_programs.txt"
 
 INTEGRATORS = {
     "RattleIntegrator(0.002)": lambda: RattleIntegrator(0.002),
+    "RattleRescaleIntegrator(0.002)": lambda: RattleRescaleIntegrator(0.002),
     "AlphaRattleIntegrator(0.002, alpha=0)": lambda: AlphaRattleIntegrator(0.002, alpha=0.0),
     "AlphaRattleIntegrator(0.002, alpha=0.1)": lambda: AlphaRattleIntegrator(0.002, alpha=0.1),
     "AlphaRattleIntegrator(0.002, alpha=0, order=4)": lambda: AlphaRattleIntegrator(

@@ -17,6 +17,9 @@ Modules:
   HIP) platforms, the system check, ``step()``, ``check_context()`` and
   ``program_listing()``;
 - :mod:`~.rattle`: :class:`RattleIntegrator` and its program;
+- :mod:`~.rescale`: :class:`RattleRescaleIntegrator`, RATTLE followed by velocity
+  rescaling to E_ref (the baseline of the energy-holding methods), and its program;
+- :mod:`~.reference_energy`: E_ref, when the integrators that hold it take it, and its API;
 - :mod:`~.alpha_rattle`: :class:`AlphaRattleIntegrator` (fixed α, orders 2 and 4) and
   :class:`AlphaRattleEnergyIntegrator` (the energy mode), their four programs side by
   side and the energy controller's pieces;
@@ -35,6 +38,7 @@ from .pieces import (
     check_context,
 )
 from .rattle import RattleIntegrator
+from .rescale import RattleRescaleIntegrator, VelocityRescaleError
 from .restore import PACKAGE_INTEGRATORS, restore_integrator
 
 __all__ = [
@@ -44,8 +48,10 @@ __all__ = [
     "IncompatibleSystemError",
     "MidpointConvergenceError",
     "RattleIntegrator",
+    "RattleRescaleIntegrator",
     "SystemSizeError",
     "TimestepUnitWarning",
+    "VelocityRescaleError",
     "check_context",
     "restore_integrator",
 ]

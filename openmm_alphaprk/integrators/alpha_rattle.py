@@ -61,11 +61,8 @@ residual or a midpoint iteration that ran away rejects the step (the context kee
 the state at its start; ``step`` raises).
 
 E_ref is taken from the state at the first step, after ``reset_reference_energy()``,
-and when the user changed the state between steps: the positions or velocities at the
-start of a step differ from those the previous step ended with *and* the total energy
-differs from the one it ended with by more than max(tolerance, 1e-6 |E|). The energy
-test is what tells a user's change from the common platform's reordering and
-re-wrapping of atoms every 250 steps, which moves coordinates but not the energy.
+and when the user changed the state between steps, by the rule of
+:mod:`~.reference_energy` (shared with RATTLE + velocity rescaling).
 """
 
 from __future__ import annotations
@@ -75,18 +72,14 @@ from typing import ClassVar
 import openmm as mm
 import openmm.unit as unit
 
-from .. import platforms
 from .._units import InputError, to_dimensionless, to_float
-from ..nve import warn_if_state_changing
 from ..observables import positive_int
-from ..smooth_forces import warn_if_not_smooth
 from .energy_settings import (
     CONTROLLER_DEFAULTS,
     DEFAULT_SLOPE_DAMPING,
     NON_PERIODIC_MIDPOINT_TOLERANCE,
     PREDICTOR_FORGETTING,
     PREDICTOR_WARMUP,
-    PROVISIONAL_ENERGY_TOLERANCE,
     ControllerSettings,
     check_alpha_bounds,
     controller_settings,
@@ -100,16 +93,15 @@ from .pieces import (
     first_forces,
     last_forces,
 )
+from .reference_energy import _ReferenceEnergy
 from .variables import (
     ALPHA,
     ALPHA_AT_BOUND,
     FELL_BACK,
     MIDPOINT_CHANGE,
     MIDPOINT_ITERATIONS,
-    N_PARTICLES,
     PREDICTED_D0,
     PREDICTED_SLOPE,
-    REFERENCE_ENERGY,
     RESIDUAL,
     SLOPE,
     SLOPE_SCALE,
@@ -127,10 +119,6 @@ _PREDICTOR_STATE = tuple(
     for series in _PREDICTED_SERIES
     for part in ("lag1", "lag2", "g11", "g12", "g22", "b1", "b2")
 ) + ("fit_d0_slope", "fit_slope_slope")
-
-#: Relative energy change between steps below which a moved state counts as the same
-#: state (the common platform's reordering), unless the energy tolerance is larger.
-_SAME_ENERGY = 1e-6
 
 
 def _ar2_prediction(series: str) -> str:
@@ -472,13 +460,14 @@ class AlphaRattleIntegrator(_StepProgram):
         super().__setattr__(name, value)
 
 
-class AlphaRattleEnergyIntegrator(AlphaRattleIntegrator):
+class AlphaRattleEnergyIntegrator(_ReferenceEnergy, AlphaRattleIntegrator):
     """α-RATTLE's energy-preserving mode: α chosen every step so that H stays at E_ref.
 
     Made by ``AlphaRattleIntegrator(timestep, alpha="energy", ...)`` (the parameters
     are documented there); this class adds what the mode has and a fixed α has not:
-    E_ref, H − E_ref, the tolerance, the α bounds and the totals of the run. The
-    controller is described in the module's docstring.
+    E_ref (taken and reset by the rule of :mod:`~.reference_energy`), H − E_ref, the
+    tolerance, the α bounds and the totals of the run. The controller is described in
+    the module's docstring.
     """
 
     energy_mode: ClassVar[bool] = True
@@ -492,12 +481,10 @@ class AlphaRattleEnergyIntegrator(AlphaRattleIntegrator):
     def _add_energy_mode_variables(self, settings: ControllerSettings, order: int) -> None:
         """Declare the controller's settings and state (after :meth:`_add_midpoint_variables`)."""
         low, high = settings.alpha_bounds
-        automatic = settings.energy_tolerance is None
+        self._add_reference_energy_variables(settings.energy_tolerance)
         for name, value in (
             ("alpha_min", low),
             ("alpha_max", high),
-            ("energy_tolerance", PROVISIONAL_ENERGY_TOLERANCE if automatic else settings.energy_tolerance),
-            ("energy_tolerance_automatic", float(automatic)),
             ("max_trials", settings.max_trials),
             ("max_alpha_change", settings.max_alpha_change),
             ("alpha_probe", settings.alpha_probe),
@@ -508,15 +495,7 @@ class AlphaRattleEnergyIntegrator(AlphaRattleIntegrator):
         ):
             self.addGlobalVariable(name, value)
         for name in (
-            REFERENCE_ENERGY,
-            "reference_set",
-            "reference_resets",
-            "state_moved",
-            "start_energy",
-            "end_energy",
-            "retake",
             "retry",
-            "kinetic_energy",
             RESIDUAL,
             "residual_last",
             "alpha_last",
@@ -580,7 +559,7 @@ class AlphaRattleEnergyIntegrator(AlphaRattleIntegrator):
             self.addGlobalVariable("short_trials", 1)
         # 0: the user chose it
         self.addGlobalVariable("midpoint_tolerance_automatic", float(settings.automatic_midpoint_tolerance))
-        for name in ("xend", "vend", "fmid_last") + (
+        for name in ("fmid_last",) + (
             ("xa", "va", "fa", "fstart_last", "xbest", "vbest") if order == 4 else ()
         ):
             self.addPerDofVariable(name, 0)
@@ -589,7 +568,7 @@ class AlphaRattleEnergyIntegrator(AlphaRattleIntegrator):
     def _build_energy_program(self) -> None:
         """Order 2: one loop over trials; a trial ends with its velocity update and residual."""
         self._add_save_step_start(fstart="f")
-        self._add_reference_check()
+        self._add_reference_check(self._predictor_resets())
         # F(x_m) predicted by linear extrapolation in time from the previous step's midpoint force
         self.addComputePerDof("fmid", "select(predictor_valid, 2*fstart - fmid_last, fstart)")
         self._add_midpoint_setup("1")
@@ -622,7 +601,7 @@ class AlphaRattleEnergyIntegrator(AlphaRattleIntegrator):
         """
         # F(x0) is read before the reference check's energy: see _add_reference_check
         self._add_save_step_start(xstep="x", vstep="v", fstart="f")
-        self._add_reference_check()
+        self._add_reference_check(self._predictor_resets())
         # the projection of the first sub-step must start from this state, which may be
         # an earlier trial's (``_add_best_trial_restore``): constrain it once (a no-op on
         # positions that satisfy the constraints) so that Reference/CPU project along it;
@@ -800,38 +779,13 @@ class AlphaRattleEnergyIntegrator(AlphaRattleIntegrator):
         self.addComputeGlobal("steps_restored", "steps_restored + restored_best")
 
     # ------------------------------------------------------------------ pieces
-    def _add_reference_check(self) -> None:
-        """Take E_ref at the first step, after a reset, and after the user changed the state.
-
-        A start state that differs from the end of the previous step (a sum over
-        degrees of freedom, zero when nothing moved) opens the block; inside it the
-        energy decides: the common platform's reordering and re-wrapping of atoms move
-        coordinates but keep the energy.
-
-        The force at x0 must have been read (copied) before this block: with the
-        energy read here as a step's first evaluation and ``f`` read after it, the
-        forces were wrong on CUDA and NVIDIA's OpenCL (measured on an H100: +32
-        kJ/mol in one step; not seen with pocl or Reference).
-        """
-        self._add_sum("state_moved", "(x - xend)^2 + (v - vend)^2")
-        self.beginIfBlock("state_moved + 1 - reference_set > 0")
-        self._add_sum("kinetic_energy", "0.5*m*v*v")
-        self.addComputeGlobal("start_energy", "energy + kinetic_energy")
-        self.addComputeGlobal(
-            "retake",
-            "max(1 - reference_set, step(abs(start_energy - end_energy) - same));"
-            f"same = max(energy_tolerance, {_SAME_ENERGY}*abs(end_energy))",
+    def _predictor_resets(self) -> tuple[tuple[str, str], ...]:
+        """Forget the predictor when E_ref is taken again (``on_retake`` of the reference check)."""
+        return (
+            *((name, f"{name}*(1 - retake)") for name in ("predictor_steps", *_PREDICTOR_STATE)),
+            ("predictor_valid", "predictor_valid*(1 - retake)"),
+            ("slope", "select(retake, 0, slope)"),
         )
-        self.addComputeGlobal("reference_energy", "select(retake, start_energy, reference_energy)")
-        # H − E_ref at the step's start is end_energy − E_ref (zero after a retake)
-        self.addComputeGlobal("end_energy", "select(retake, start_energy, end_energy)")
-        for name in ("predictor_steps", *_PREDICTOR_STATE):
-            self.addComputeGlobal(name, f"{name}*(1 - retake)")
-        self.addComputeGlobal("reference_resets", "reference_resets + retake")
-        self.addComputeGlobal("predictor_valid", "predictor_valid*(1 - retake)")
-        self.addComputeGlobal("slope", "select(retake, 0, slope)")
-        self.addComputeGlobal("reference_set", "1")
-        self.endBlock()
 
     def _add_controller_start(self) -> None:
         """Reset the per-step controller state; the first trial uses the last step's α*."""
@@ -931,9 +885,7 @@ class AlphaRattleEnergyIntegrator(AlphaRattleIntegrator):
         self.addComputeGlobal("alpha", "select(restarting, alpha_next, alpha)")
         self.addComputeGlobal("need_midpoint", "restarting")
         self.addComputeGlobal("previous_midpoint_change", "1e30")
-        self.addComputeGlobal("end_energy", "residual + reference_energy")
-        self.addComputePerDof("xend", "x")
-        self.addComputePerDof("vend", "v")
+        self._add_end_state_record("residual + reference_energy")
         self.addComputePerDof("fmid_last", "fmid")
         for variable, expression in next_start.items():
             self.addComputePerDof(variable, f"select(restarting, {expression}, {variable})")
@@ -1086,12 +1038,6 @@ class AlphaRattleEnergyIntegrator(AlphaRattleIntegrator):
         self.addComputeGlobal("last_move", "alpha - alpha_start")
 
     # ---------------------------------------------------------------- what the user sets and reads
-    def _set_automatic_energy_tolerance(self, n_atoms: int, precision: str) -> None:
-        """Set the default energy tolerance for the system and platform, unless the user chose one."""
-        if self.getGlobalVariableByName("energy_tolerance_automatic"):
-            tolerance = platforms.default_energy_tolerance(n_atoms, precision)
-            self.setGlobalVariableByName("energy_tolerance", tolerance)
-
     def _set_system_defaults(self, periodic: bool) -> None:
         """Set the midpoint tolerance for the system's box, unless the user chose one.
 
@@ -1103,37 +1049,10 @@ class AlphaRattleEnergyIntegrator(AlphaRattleIntegrator):
         if not periodic and self.getGlobalVariableByName("midpoint_tolerance_automatic"):
             self.setGlobalVariableByName("midpoint_tolerance", NON_PERIODIC_MIDPOINT_TOLERANCE)
 
-    def reset_reference_energy(self) -> None:
-        """Take E_ref from the state at the start of the next step.
-
-        The integrator also notices by itself when positions or velocities were set
-        between steps; call this to be explicit, e.g. after changing parameters of a
-        force (which changes the energy without changing the state).
-        """
-        self.setGlobalVariableByName("reference_set", 0)
-
-    @property
-    def reference_energy(self) -> unit.Quantity:
-        """E_ref, the total energy the energy mode holds (NaN before the first step)."""
-        if not self.getGlobalVariableByName("reference_set") and not self.steps_taken:
-            return float("nan") * unit.kilojoules_per_mole
-        return self.getGlobalVariableByName(REFERENCE_ENERGY) * unit.kilojoules_per_mole
-
     @property
     def energy_residual(self) -> unit.Quantity:
         """H − E_ref after the last step (total energy with on-step velocities)."""
         return self.getGlobalVariableByName(RESIDUAL) * unit.kilojoules_per_mole
-
-    @property
-    def energy_tolerance(self) -> unit.Quantity:
-        """The controller's target |H − E_ref| per step."""
-        return self.getGlobalVariableByName("energy_tolerance") * unit.kilojoules_per_mole
-
-    @energy_tolerance.setter
-    def energy_tolerance(self, value: unit.Quantity | float) -> None:
-        tolerance = to_float(value, unit.kilojoules_per_mole, "energy_tolerance", positive=True)
-        self.setGlobalVariableByName("energy_tolerance", tolerance)
-        self.setGlobalVariableByName("energy_tolerance_automatic", 0)
 
     @property
     def alpha_bounds(self) -> tuple[float, float]:
@@ -1209,18 +1128,9 @@ class AlphaRattleEnergyIntegrator(AlphaRattleIntegrator):
         }
 
     def _check_system(self, context: mm.Context) -> None:
-        """Set the default tolerance from the platform's precision, and give the System's warnings."""
-        system = context.getSystem()
-        self._set_automatic_energy_tolerance(system.getNumParticles(), platforms.force_precision(context))
-        self._set_system_defaults(system.usesPeriodicBoundaryConditions())
-        warn_if_not_smooth(system)  # both point at the user's call
-        warn_if_state_changing(system)
-
-    def _check_before_steps(self, context: mm.Context | None) -> None:
-        super()._check_before_steps(context)
-        if context is None:
-            particles = int(self.getGlobalVariableByName(N_PARTICLES))
-            self._set_automatic_energy_tolerance(particles, platforms.UNKNOWN_PRECISION)
+        """Set the tolerances for the System and platform, and give the System's warnings."""
+        super()._check_system(context)
+        self._set_system_defaults(context.getSystem().usesPeriodicBoundaryConditions())
 
 
 def _check_order(order: object) -> None:
@@ -1256,5 +1166,9 @@ def _energy_mode_only(name: str) -> str:
 
 #: What the energy mode has and a fixed α has not.
 _ENERGY_MODE_ONLY = frozenset(
-    name for name in vars(AlphaRattleEnergyIntegrator) if not name.startswith("_") and name != "energy_mode"
+    name
+    for cls in AlphaRattleEnergyIntegrator.__mro__
+    if cls is not AlphaRattleIntegrator and not issubclass(AlphaRattleIntegrator, cls)
+    for name in vars(cls)
+    if not name.startswith("_") and name != "energy_mode"
 )

@@ -185,17 +185,18 @@ class _StepProgram(mm.CustomIntegrator):
             self.addPerDofVariable(name, 0)
 
     # ------------------------------------------------------------ the frame
-    def _add_step(self, body: Callable[[], None], update_context_state: bool) -> None:
+    def _add_step(self, body: Callable[[], None], update_context_state: bool, halted: str = "0") -> None:
         """Add the whole program: the update-context-state step, the system check, ``body`` unless refused.
 
         ``update_context_state`` adds OpenMM's update-context-state step first, where
         barostats, thermostats and the CMMotionRemover act, as at the start of a
-        ``VerletIntegrator`` step.
+        ``VerletIntegrator`` step. ``halted``: a global that, once a step set it, skips
+        the body of the steps after it too.
         """
         if update_context_state:
             self.addUpdateContextState()
         self._add_system_check()
-        self.beginIfBlock(f"{REFUSED} < 0.5")
+        self.beginIfBlock(f"{REFUSED} < 0.5" if halted == "0" else f"{REFUSED} + {halted} < 0.5")
         body()
         self.endBlock()
 
@@ -222,6 +223,7 @@ class _StepProgram(mm.CustomIntegrator):
         """
         self.beginIfBlock(f"{CHECK_SYSTEM} > 0.5")
         self.addComputeSum(NDOF, "1")
+        self._add_system_measurements()
         self.addComputeGlobal(
             REFUSED,
             f"step({N_PARTICLES} - 0.5)*max(step(massless - 0.5)*step(1.5 - {CHECK_SYSTEM}),"
@@ -229,6 +231,9 @@ class _StepProgram(mm.CustomIntegrator):
         )
         self.addComputeGlobal(CHECK_SYSTEM, str(_NO_CHECK))
         self.endBlock()
+
+    def _add_system_measurements(self) -> None:
+        """Measure what a program needs of the System, at the system check (inside its block)."""
 
     # ------------------------------------------------------------ RATTLE pieces
     def _add_save_step_start(self, **copies: str) -> None:

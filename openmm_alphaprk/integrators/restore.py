@@ -8,17 +8,20 @@ from .._units import InputTypeError
 from .alpha_rattle import AlphaRattleEnergyIntegrator, AlphaRattleIntegrator
 from .pieces import _StepProgram
 from .rattle import RattleIntegrator
+from .rescale import RattleRescaleIntegrator
 from .variables import KIND_VARIABLE, REFERENCE_ENERGY
 
 #: This package's integrator classes (the energy mode's class is an AlphaRattleIntegrator):
 #: ``isinstance(integrator, PACKAGE_INTEGRATORS)`` tells an integrator that counts its force
 #: evaluations from one that does not (``openmm.VerletIntegrator``).
-PACKAGE_INTEGRATORS = (RattleIntegrator, AlphaRattleIntegrator)
+PACKAGE_INTEGRATORS = (RattleIntegrator, RattleRescaleIntegrator, AlphaRattleIntegrator)
 
 _CLASSES_BY_KIND: dict[int, type[_StepProgram]] = {cls._kind: cls for cls in PACKAGE_INTEGRATORS}
 
 
-def restore_integrator(integrator: mm.Integrator) -> RattleIntegrator | AlphaRattleIntegrator:
+def restore_integrator(
+    integrator: mm.Integrator,
+) -> RattleIntegrator | RattleRescaleIntegrator | AlphaRattleIntegrator:
     """Give a deserialized or ``Context.getIntegrator()`` object its Python class back.
 
     ``XmlSerializer.deserialize`` and ``Context.getIntegrator`` return a plain
@@ -34,8 +37,8 @@ def restore_integrator(integrator: mm.Integrator) -> RattleIntegrator | AlphaRat
     Returns
     -------
     The same object, now an instance of :class:`~.rattle.RattleIntegrator`,
-    :class:`~.alpha_rattle.AlphaRattleIntegrator` or (a program of the energy mode)
-    :class:`~.alpha_rattle.AlphaRattleEnergyIntegrator`.
+    :class:`~.rescale.RattleRescaleIntegrator`, :class:`~.alpha_rattle.AlphaRattleIntegrator`
+    or (a program of the energy mode) :class:`~.alpha_rattle.AlphaRattleEnergyIntegrator`.
 
     Raises
     ------

@@ -38,3 +38,11 @@ SLOPE = "slope"
 SLOPE_SCALE = "slope_scale"
 PREDICTED_D0 = "predicted_d0"
 PREDICTED_SLOPE = "predicted_slope"
+
+# ---------------------------------------------------------------- RATTLE + velocity rescaling
+#: s, the factor the last step scaled the velocities relative to the rigid-body motion by.
+VELOCITY_SCALE = "velocity_scale"
+#: H − E_ref after the last RATTLE step, before its velocities were scaled.
+RATTLE_RESIDUAL = "rattle_residual"
+#: 1 if a step found no real scale factor: it and the rest of the ``step()`` call did nothing.
+RESCALE_HALTED = "rescale_halted"

@@ -5,6 +5,10 @@ Names (:data:`VOCABULARY`, in the order ``--help`` lists them):
 ``rattle``
     :class:`~openmm_alphaprk.RattleIntegrator` (velocity Verlet with SHAKE/SETTLE and
     RATTLE velocities; one force evaluation per step).
+``rattle+rescale``
+    :class:`~openmm_alphaprk.RattleRescaleIntegrator` (RATTLE, then the velocities
+    relative to the rigid-body motion scaled so that H = E_ref; one force evaluation per
+    step): the cheapest way to hold the energy, the baseline of the energy modes.
 ``alpha=<number>``
     :class:`~openmm_alphaprk.AlphaRattleIntegrator` with that fixed α; fractions
     are accepted (``alpha=1/6``). ``alpha=0`` is RATTLE.
@@ -34,7 +38,12 @@ import openmm as mm
 import openmm.unit as unit
 
 from .._units import InputError
-from ..integrators import AlphaRattleIntegrator, IncompatibleSystemError, RattleIntegrator
+from ..integrators import (
+    AlphaRattleIntegrator,
+    IncompatibleSystemError,
+    RattleIntegrator,
+    RattleRescaleIntegrator,
+)
 from ..observables import VERLET_IS_LEAPFROG
 from ..platforms import massless_particles
 
@@ -60,6 +69,13 @@ VOCABULARY = (
         "rattle",
         2,
         "RattleIntegrator (velocity Verlet + SHAKE/SETTLE/RATTLE, 1 force evaluation/step)",
+    ),
+    IntegratorName(
+        "rattle+rescale",
+        "rescale",
+        2,
+        "RattleRescaleIntegrator (RATTLE, then the velocities relative to the rigid-body motion scaled "
+        "so that H = E_ref; 1 force evaluation/step, its energy read with it)",
     ),
     IntegratorName(
         "alpha=<number>",
@@ -105,7 +121,7 @@ class UnknownIntegratorError(InputError):
 
 @dataclass(frozen=True)
 class IntegratorSpec:
-    """A parsed integrator name: ``kind`` is rattle, alpha, energy or verlet; ``order`` 2 or 4."""
+    """A parsed integrator name: ``kind`` is rattle, rescale, alpha, energy or verlet; ``order`` 2 or 4."""
 
     kind: str
     alpha: float | None = None
@@ -137,7 +153,9 @@ class IntegratorSpec:
 
 
 def parse_integrator(text: str | IntegratorSpec) -> IntegratorSpec:
-    """Parse ``rattle``, ``verlet``, ``energy``, ``energy4``, ``alpha=<x>`` or ``alpha4=<x>`` (any case).
+    """Parse an integrator name of :data:`VOCABULARY` (any case; white space is ignored).
+
+    ``rattle``, ``rattle+rescale``, ``verlet``, ``energy``, ``energy4``, ``alpha=<x>``, ``alpha4=<x>``.
 
     Raises
     ------
@@ -159,14 +177,15 @@ def parse_integrator(text: str | IntegratorSpec) -> IntegratorSpec:
         if value is not None and value == value and abs(value) != float("inf"):
             return IntegratorSpec(entry.kind, value, text=cleaned, order=entry.order)
     raise UnknownIntegratorError(
-        f"unknown integrator {text!r}; use one of: rattle, verlet, energy, energy4, alpha=<number>, "
-        "alpha4=<number> (e.g. alpha=0.5, alpha=1/6, alpha4=0)."
+        f"unknown integrator {text!r}; use one of: rattle, rattle+rescale, verlet, energy, energy4, "
+        "alpha=<number>, alpha4=<number> (e.g. alpha=0.5, alpha=1/6, alpha4=0)."
     )
 
 
 #: Display labels of the names without a number (tables, figures, benchmarks, reports).
 _LABELS = {
     "rattle": "RATTLE",
+    "rattle+rescale": "RATTLE + rescaling",
     "verlet": "VerletIntegrator",
     "energy": "α-RATTLE energy mode",
     "energy4": "α-RATTLE-4 energy mode",
@@ -177,7 +196,7 @@ def label(spec: str | IntegratorSpec) -> str:
     """Return the display label of an integrator name: ``alpha=1/6`` → ``α-RATTLE α = 1/6``.
 
     The one set of labels the benchmarks, reports and figures use (``RATTLE``,
-    ``VerletIntegrator``, ``α-RATTLE α = x``, ``α-RATTLE-4 α = x``, ``α-RATTLE energy
+    ``RATTLE + rescaling``, ``VerletIntegrator``, ``α-RATTLE α = x``, ``α-RATTLE-4 α = x``, ``α-RATTLE energy
     mode``, ``α-RATTLE-4 energy mode``); ``x`` is written as given (fractions kept).
     """
     spec = parse_integrator(spec)
@@ -201,6 +220,8 @@ def make_integrator(
         timestep = timestep * unit.picoseconds
     if spec.kind == "rattle":
         return RattleIntegrator(timestep, constraint_tolerance)
+    if spec.kind == "rescale":
+        return RattleRescaleIntegrator(timestep, constraint_tolerance)
     if spec.kind == "alpha":
         return AlphaRattleIntegrator(
             timestep, alpha=spec.alpha, constraint_tolerance=constraint_tolerance, order=spec.order
@@ -236,7 +257,7 @@ def check_compatible(
         f"use verlet (openmm.VerletIntegrator, any platform): `alphaprk run {shown} verlet` or "
         f"`alphaprk compare {shown} -i verlet`"
     )
-    if spec.kind in ("rattle", "alpha") and (spec.kind == "rattle" or spec.alpha == 0.0):
+    if spec.kind in ("rattle", "rescale") or (spec.kind == "alpha" and spec.alpha == 0.0):
         reason = (
             f"on the {platform} platform OpenMM places virtual sites only at the end of a CustomIntegrator "
             "step, so forces inside the step would see stale sites. Instead run it with --platform CUDA, "

@@ -1,0 +1,321 @@
+"""RATTLE followed by velocity rescaling to E_ref: the cheapest way to hold the energy.
+
+Each step is a RATTLE step (:class:`~.rattle.RattleIntegrator`'s), then the velocities
+relative to the rigid-body motion are scaled so that the total energy is E_ref again::
+
+    v ← v_rigid + s (v − v_rigid),   s² = (E_ref − V − K_rigid) / (K − K_rigid)
+
+v_rigid = V_cm + ω × (x − x_cm) is the rigid-body motion of the velocities after the
+RATTLE step: the centre-of-mass velocity V_cm = P/M always, and, unless the System has a
+periodic box (see :meth:`RattleRescaleIntegrator.check_context`), the rigid rotation
+ω = I⁻¹L about the centre of mass. The velocities relative to it carry no linear and no
+angular momentum, so the scaling keeps P and L (to round-off), and, since rigid motion
+keeps every distance, it keeps the velocity constraints G v = 0. K = K_rigid + K_internal
+(the cross terms vanish), V is the potential energy after the step, read with the
+step's one force evaluation. E_ref is taken and reset by the rule of
+:mod:`~.reference_energy`, as the energy mode takes it.
+
+A step for which no real positive s exists (E_ref − V ≤ K_rigid, or no internal kinetic
+energy) is not taken: the Context keeps the state it started from, the steps after it in
+the same ``step()`` call do nothing, and ``step()`` raises
+:class:`VelocityRescaleError`, which says why.
+
+Sums over degrees of freedom per step (each a device synchronisation on CUDA, OpenCL and
+HIP): the reference check's one, the kinetic energy and the three components of P; with
+the rotation, the centre of mass, L and the inertia tensor (12 more).
+"""
+
+from __future__ import annotations
+
+import math
+
+import openmm as mm
+import openmm.unit as unit
+
+from .pieces import DEFAULT_CONSTRAINT_TOLERANCE, _StepProgram
+from .reference_energy import _ReferenceEnergy, energy_tolerance_setting
+from .variables import RATTLE_RESIDUAL, RESCALE_HALTED, STEPS_TAKEN, VELOCITY_SCALE
+
+_AXES = {"x": "vector(1,0,0)", "y": "vector(0,1,0)", "z": "vector(0,0,1)"}
+#: Velocity of the rigid-body motion at the positions x, per degree of freedom.
+_RIGID_VELOCITY = (
+    "vector(momentum_x, momentum_y, momentum_z)/total_mass"
+    " + cross(vector(omega_x, omega_y, omega_z), x - vector(centre_x, centre_y, centre_z))"
+)
+#: Relative size of the diagonal added to the inertia tensor before it is inverted: leaves ω
+#: unchanged for any System that can rotate, and finite for a linear one (whose rotation
+#: about its axis moves no atom).
+_INERTIA_REGULARIZATION = 1e-12
+
+
+class VelocityRescaleError(RuntimeError):
+    """Raised when RATTLE + velocity rescaling finds no real factor that makes the total energy E_ref."""
+
+
+class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
+    """RATTLE, then the velocities relative to the rigid-body motion scaled so that H = E_ref.
+
+    The baseline every energy-holding method must beat: one force evaluation per step
+    (its energy comes with it), H held at E_ref to the round-off of OpenMM's energy,
+    linear and angular momentum and the velocity constraints kept, and the trajectory
+    RATTLE's but for a velocity scale s of order 1 ± RATTLE's one-step energy error / K.
+    It is not symplectic, and exact energy is not accuracy: a rescaled step is no closer
+    to the true dynamics than RATTLE's.
+
+    E_ref is the total energy of the state at the first step, and is taken again after
+    :meth:`reset_reference_energy` and when the user changed the state (the rule of
+    :mod:`openmm_alphaprk.integrators.reference_energy`). NVE: no update-context-state
+    step, so barostats, thermostats and a ``CMMotionRemover`` do not act;
+    :meth:`check_context` warns about them and about forces that are not smooth.
+
+    Call :meth:`check_context` (e.g. ``integrator.check_context(simulation.context)``)
+    once after creating the Context: it shows the integrator whether the System has a
+    periodic box, where angular momentum is not conserved and only the centre-of-mass
+    velocity is kept out of the scaling (without the call the rigid rotation is taken
+    out too, which keeps everything right at 12 more sums per step), and the platform's
+    precision behind the default energy tolerance.
+
+    Parameters
+    ----------
+    timestep
+        Step size (Quantity, or number in picoseconds).
+    constraint_tolerance
+        Relative constraint tolerance passed to ``setConstraintTolerance``.
+    energy_tolerance
+        Total-energy change (Quantity or kJ/mol) below which a state set between steps
+        keeps E_ref (see :attr:`energy_tolerance`); default: 3× the noise of OpenMM's
+        energy for the system's size and the platform's precision, set by
+        :meth:`check_context`.
+    """
+
+    _kind = 3
+    _holds_energy_as = "RATTLE with velocity rescaling"
+
+    def __init__(
+        self,
+        timestep: unit.Quantity | float,
+        constraint_tolerance: float = DEFAULT_CONSTRAINT_TOLERANCE,
+        *,
+        energy_tolerance: unit.Quantity | float | None = None,
+    ) -> None:
+        tolerance = energy_tolerance_setting(energy_tolerance)
+        super().__init__(timestep, constraint_tolerance)
+        self._add_reference_energy_variables(tolerance)
+        self._add_rescale_variables()
+        self._add_step(self._build_program, update_context_state=False, halted=RESCALE_HALTED)
+
+    def _add_rescale_variables(self) -> None:
+        self.addGlobalVariable("rotation", 1)  # check_context sets 0 for a periodic System
+        self.addGlobalVariable("total_mass", 0)
+        for name in (
+            "potential_energy",
+            "rigid_kinetic_energy",
+            "scale_squared",
+            "no_factor",
+            RATTLE_RESIDUAL,
+            RESCALE_HALTED,
+            "sum_rattle_residual_squared",
+            "max_abs_scale_change",
+            "sum_inertia",
+            *(f"{name}_{axis}" for name in ("momentum", "centre", "angular", "omega") for axis in _AXES),
+            *(f"inertia_{pair}" for pair in ("xx", "yy", "zz", "xy", "xz", "yz")),
+        ):
+            self.addGlobalVariable(name, 0)
+        self.addGlobalVariable(VELOCITY_SCALE, 1)
+        self.addPerDofVariable("rigid_velocity", 0)
+
+    # ---------------------------------------------------------------- the program
+    def _build_program(self) -> None:
+        """Add the RATTLE step, then the rigid-body motion, the scale factor and the scaled velocities."""
+        self._add_save_step_start()
+        self._add_reference_check()
+        self._add_position_solve("0.5*f")
+        self._add_velocity_update("0.5*f")
+        self._add_rigid_body_motion()
+        self._add_scale_factor()
+        self._add_halt_without_factor()
+        self.beginIfBlock("no_factor < 0.5")
+        self.addComputePerDof("rigid_velocity", _RIGID_VELOCITY)
+        self.addComputePerDof("v", f"rigid_velocity + {VELOCITY_SCALE}*(v - rigid_velocity)")
+        self._add_end_state_record(
+            "potential_energy + rigid_kinetic_energy + scale_squared*internal;"
+            "internal = kinetic_energy - rigid_kinetic_energy"
+        )
+        self.addComputeGlobal(
+            "sum_rattle_residual_squared", f"sum_rattle_residual_squared + {RATTLE_RESIDUAL}^2"
+        )
+        self.addComputeGlobal("max_abs_scale_change", f"max(max_abs_scale_change, abs({VELOCITY_SCALE} - 1))")
+        self.endBlock()
+        self._add_end_step()
+
+    def _add_system_measurements(self) -> None:
+        self.addComputeSum("total_mass", "m/3")
+
+    def _add_rigid_body_motion(self) -> None:
+        """K, P and (with ``rotation``) the centre of mass, L about it, the inertia tensor and ω = I⁻¹L.
+
+        Sums of the velocities after the RATTLE step. Without ``rotation`` ω stays 0.
+        """
+        self._add_sum("kinetic_energy", "0.5*m*v*v")
+        for axis, unit_vector in _AXES.items():
+            self._add_sum(f"momentum_{axis}", f"m*v*{unit_vector}")
+        self.beginIfBlock("rotation > 0.5")
+        for axis, unit_vector in _AXES.items():
+            self._add_sum(f"centre_{axis}", f"m*x*{unit_vector}/total_mass")
+        r = "(x - vector(centre_x, centre_y, centre_z))"
+        for axis, unit_vector in _AXES.items():
+            self._add_sum(f"angular_{axis}", f"m*cross({r}, v)*{unit_vector}")
+        self._add_sum("sum_inertia", f"m*{r}^2")  # Σ m |r|²
+        for axis, unit_vector in _AXES.items():  # Σ m r_a², the diagonal is Σ m |r|² − that
+            self._add_sum(f"inertia_{axis}{axis}", f"m*{r}^2*{unit_vector}")
+            self.addComputeGlobal(f"inertia_{axis}{axis}", f"sum_inertia - inertia_{axis}{axis}")
+        for pair, (first, second) in (("xy", "xy"), ("xz", "xz"), ("yz", "yz")):
+            self._add_sum(f"inertia_{pair}", f"-m*_{first}({r})*_{second}({r})*vector(1,0,0)")
+        for axis in _AXES:
+            self.addComputeGlobal(f"omega_{axis}", _angular_velocity(axis))
+        self.endBlock()
+
+    def _add_scale_factor(self) -> None:
+        """Add s² = (E_ref − V − K_rigid)/(K − K_rigid); ``no_factor`` = 1 unless it is positive, finite."""
+        self.addComputeGlobal("potential_energy", "energy")
+        self.addComputeGlobal(RATTLE_RESIDUAL, "potential_energy + kinetic_energy - reference_energy")
+        self.addComputeGlobal(
+            "rigid_kinetic_energy",
+            "0.5*(momentum_x^2 + momentum_y^2 + momentum_z^2)/total_mass"
+            " + 0.5*(omega_x*angular_x + omega_y*angular_y + omega_z*angular_z)",
+        )
+        self.addComputeGlobal(
+            "scale_squared",
+            "(reference_energy - potential_energy - rigid_kinetic_energy)"
+            "/(kinetic_energy - rigid_kinetic_energy)",
+        )
+        # step(NaN) is 0: a non-finite energy has no factor either
+        self.addComputeGlobal(
+            "no_factor",
+            "1 - step(scale_squared - 1e-300)*step(1e300 - scale_squared)"
+            "*step(kinetic_energy - rigid_kinetic_energy - 1e-300)",
+        )
+        self.addComputeGlobal(VELOCITY_SCALE, "select(no_factor, 1, sqrt(max(scale_squared, 0)))")
+
+    def _add_halt_without_factor(self) -> None:
+        """Without a factor: back to the step's start, not counted as a step, and halt the call.
+
+        The position assignment comes after every constraint step in program text, so the
+        common platform stores it as positions, not as a displacement (rule 1 of
+        :mod:`~.pieces`).
+        """
+        self.beginIfBlock("no_factor > 0.5")
+        self.addComputePerDof("x", "x0")
+        self.addComputePerDof("v", "v0")
+        self.addComputeGlobal(RESCALE_HALTED, "1")
+        self.addComputeGlobal(STEPS_TAKEN, f"{STEPS_TAKEN} - 1")  # _add_end_step counts it again
+        self.endBlock()
+
+    # ---------------------------------------------------------------- stepping
+    def step(self, steps: int) -> None:
+        """Advance by ``steps`` steps; raise if a step found no real scale factor.
+
+        Raises
+        ------
+        VelocityRescaleError
+            If E_ref − V after a RATTLE step is at most the rigid-body kinetic energy (no
+            real factor), or the step's energy is not finite. The Context is left in the
+            state the failed step started from; OpenMM's step count and time advanced by
+            the failed step and the rest of the call, which did nothing.
+        IncompatibleSystemError, SystemSizeError, StartBlowUpError
+            As for :meth:`RattleIntegrator.step <openmm_alphaprk.RattleIntegrator.step>`.
+        """
+        steps = int(steps)
+        if steps <= 0:
+            return
+        self.setGlobalVariableByName(RESCALE_HALTED, 0)
+        before = self.steps_taken
+        super().step(steps)
+        if self.getGlobalVariableByName(RESCALE_HALTED):
+            raise VelocityRescaleError(self._no_factor_message(steps - (self.steps_taken - before)))
+
+    def _no_factor_message(self, idle_steps: int) -> str:
+        get = self.getGlobalVariableByName
+        potential, kinetic = get("potential_energy"), get("kinetic_energy")
+        reference, rigid = get("reference_energy"), get("rigid_kinetic_energy")
+        where = (
+            f"{type(self).__name__} stopped at its step {self.steps_taken + 1}: the Context holds the state "
+            f"that step started from (positions and velocities); OpenMM's step count and time advanced by "
+            f"{idle_steps} step(s) that did nothing."
+        )
+        if not (math.isfinite(potential) and math.isfinite(kinetic)):
+            return (
+                f"the RATTLE step blew up (potential energy {potential:.6g} kJ/mol, kinetic energy "
+                f"{kinetic:.6g} kJ/mol): reduce the step size, or minimize and equilibrate the start. {where}"
+            )
+        return (
+            f"no real velocity scale s makes K + V = E_ref: E_ref − V − K_rigid = "
+            f"{reference - potential - rigid:.6g} kJ/mol (E_ref {reference:.6g}, V after the RATTLE step "
+            f"{potential:.6g}, rigid-body kinetic energy {rigid:.6g}) against an internal kinetic energy of "
+            f"{kinetic - rigid:.6g} kJ/mol. Likely causes: the potential energy changed without the state "
+            "changing (a force parameter set between steps): call integrator.reset_reference_energy() after "
+            "such a change; or too little internal kinetic energy to absorb RATTLE's one-step energy error "
+            f"(velocities near zero): give the system velocities. {where}"
+        )
+
+    def _check_system(self, context: mm.Context) -> None:
+        """Keep only the centre-of-mass velocity out of the scaling with a periodic box; warn (NVE)."""
+        super()._check_system(context)
+        periodic = context.getSystem().usesPeriodicBoundaryConditions()
+        self.setGlobalVariableByName("rotation", 0.0 if periodic else 1.0)
+
+    # ---------------------------------------------------------------- what the user reads
+    @property
+    def velocity_scale(self) -> float:
+        """The factor s the last step scaled the velocities relative to the rigid-body motion by."""
+        return self.getGlobalVariableByName(VELOCITY_SCALE)
+
+    @property
+    def rattle_residual(self) -> unit.Quantity:
+        """H − E_ref after the last RATTLE step, before the scaling: the energy error it removed."""
+        return self.getGlobalVariableByName(RATTLE_RESIDUAL) * unit.kilojoules_per_mole
+
+    @property
+    def removes_rotation(self) -> bool:
+        """Whether the rigid rotation is kept out of the scaling (no periodic box, or not known)."""
+        return bool(self.getGlobalVariableByName("rotation"))
+
+    def rescale_totals(self) -> dict[str, float]:
+        """Totals over every step since the integrator was created.
+
+        Returns
+        -------
+        A dict with ``steps``, ``reference_resets``, ``force_evaluations_per_step``,
+        ``rms_rattle_residual`` (RMS of H − E_ref after each RATTLE step, before its
+        scaling: the energy error the rescaling removed, kJ/mol) and
+        ``max_abs_scale_change`` (max |s − 1|); NaN before the first step.
+        """
+        steps = self.steps_taken
+        squares = self.getGlobalVariableByName("sum_rattle_residual_squared")
+        return {
+            "steps": steps,
+            "reference_resets": int(self.getGlobalVariableByName("reference_resets")),
+            "force_evaluations_per_step": self.force_evaluations_per_step,
+            "rms_rattle_residual": (squares / steps) ** 0.5 if steps else float("nan"),
+            "max_abs_scale_change": self.getGlobalVariableByName("max_abs_scale_change")
+            if steps
+            else float("nan"),
+        }
+
+
+def _angular_velocity(axis: str) -> str:
+    """Expression of ω_axis = ((I + εI₀) ⁻¹ L)_axis by the adjugate of the symmetric 3×3 inertia tensor."""
+    row = {
+        "x": "(a11*angular_x + a12*angular_y + a13*angular_z)",
+        "y": "(a12*angular_x + a22*angular_y + a23*angular_z)",
+        "z": "(a13*angular_x + a23*angular_y + a33*angular_z)",
+    }[axis]
+    return (
+        f"{row}/det;"
+        "det = ixx*a11 + ixy*a12 + ixz*a13;"
+        "a11 = iyy*izz - iyz^2; a22 = ixx*izz - ixz^2; a33 = ixx*iyy - ixy^2;"
+        "a12 = ixz*iyz - ixy*izz; a13 = ixy*iyz - iyy*ixz; a23 = ixy*ixz - ixx*iyz;"
+        f"ixx = inertia_xx + eps; iyy = inertia_yy + eps; izz = inertia_zz + eps;"
+        "ixy = inertia_xy; ixz = inertia_xz; iyz = inertia_yz;"
+        f"eps = {_INERTIA_REGULARIZATION!r}*sum_inertia"
+    )
