@@ -1,4 +1,7 @@
-"""The quantities every room measures, each in one place: energy, drift, RMS, DOF, constraints, momenta, α*.
+"""The quantities every room measures, each in one place.
+
+Energy, drift, RMS, DOF, constraints, momenta, α*, trajectory errors against a
+reference, block averages, temperature.
 
 Runs, analyses, benchmarks, reports and tests import these; nothing here imports
 anything of the package above it (integrators, runs, workflows).
@@ -346,6 +349,57 @@ def momenta(particle_masses: np.ndarray, x: np.ndarray, v: np.ndarray) -> tuple[
     """Total linear (amu nm/ps) and angular momentum about the origin (amu nm²/ps)."""
     m = np.asarray(particle_masses)[:, None]
     return (m * v).sum(0), (m * np.cross(x, v)).sum(0)
+
+
+def trajectory_error(
+    values: np.ndarray, reference: np.ndarray, box: np.ndarray | None = None
+) -> tuple[float, float]:
+    """RMS over atoms and maximum of |values − reference| per atom (positions in nm or velocities in nm/ps).
+
+    ``values`` and ``reference`` have shape (N, 3). With ``box`` (the edge lengths of a
+    rectangular periodic box, nm) a position difference is taken by the minimum image,
+    so that an atom wrapped into the box by one run and not the other counts by how far
+    it is from the reference, not by a box length.
+    """
+    difference = np.asarray(values, dtype=float) - np.asarray(reference, dtype=float)
+    if box is not None:
+        edges = np.asarray(box, dtype=float)
+        difference -= edges * np.round(difference / edges)
+    per_atom = np.linalg.norm(difference, axis=1)
+    return float(np.sqrt(np.mean(per_atom**2))), float(np.max(per_atom))
+
+
+def block_average(values: np.ndarray, blocks: int) -> tuple[float, float]:
+    """Mean of ``values`` and its standard error from ``blocks`` contiguous block means.
+
+    SE = std(block means, ddof=1)/√blocks: blocks long compared with the correlation time
+    of the series are independent samples, where the samples themselves are not. A
+    remainder of ``len(values) % blocks`` samples at the end is left out.
+
+    Raises
+    ------
+    ValueError
+        For fewer than two blocks, or fewer samples than blocks.
+    """
+    values = np.asarray(values, dtype=float)
+    blocks = positive_int(blocks, "blocks")
+    if blocks < 2 or values.size < blocks:
+        raise InputError(
+            f"a block average needs at least 2 blocks and a sample per block; got {blocks} "
+            f"blocks for {values.size} samples."
+        )
+    size = values.size // blocks
+    means = values[: size * blocks].reshape(blocks, size).mean(axis=1)
+    return float(means.mean()), float(means.std(ddof=1) / math.sqrt(blocks))
+
+
+#: Boltzmann's constant in kJ/mol/K.
+BOLTZMANN = (unit.MOLAR_GAS_CONSTANT_R).value_in_unit(unit.kilojoules_per_mole / unit.kelvin)
+
+
+def temperature(kinetic_energy: np.ndarray | float, dof: int) -> np.ndarray | float:
+    """Kinetic temperature (K) of a kinetic energy (kJ/mol) over ``dof`` degrees of freedom: 2K/(dof k_B)."""
+    return 2.0 * np.asarray(kinetic_energy) / (dof * BOLTZMANN)
 
 
 def alpha_percentiles(alphas: np.ndarray) -> dict[str, float]:

@@ -39,7 +39,7 @@ from ..observables import (
     fit_drift,
     rms,
 )
-from ..runs.integrator_names import label, make_integrator
+from ..runs.integrator_names import SubStepped, at_divisor, label, make_integrator
 from ..systems import PreparedSystem, build_water_box, list_systems, prepare_system
 from .cost import _context, add_box_arguments, build_platform, interleaved_timing, platform_properties
 
@@ -65,14 +65,6 @@ class EnergyRow:
     blew_up_at_step: int | None = None
 
 
-@dataclass(frozen=True)
-class BenchmarkIntegrator:
-    """How to make one row's integrator: ``substeps`` steps of ``make()`` per benchmark step."""
-
-    make: Callable[[], mm.Integrator]
-    substeps: int = 1
-
-
 #: The rows, by integrator name (:mod:`openmm_alphaprk.runs.integrator_names`); the first is the baseline.
 INTEGRATOR_NAMES = ("rattle", "energy", "alpha4=0", "energy4")
 #: α-RATTLE-4's fixed α values scanned beside the energy modes (with ``alpha4=0``: the fixed-α scan).
@@ -83,13 +75,13 @@ EQUAL_COST_REFERENCE = label("energy4")
 
 def energy_benchmark_integrators(
     timestep: float, names: Sequence[str] = INTEGRATOR_NAMES
-) -> dict[str, BenchmarkIntegrator]:
+) -> dict[str, SubStepped]:
     """RATTLE (the baseline), both energy modes and α-RATTLE-4 at α = 0, by label.
 
     The equal-cost row (RATTLE at h/k, k = α-RATTLE-4's mean force evaluations per
     step) is added by :func:`run_energy_benchmark` once k is measured.
     """
-    return {label(name): BenchmarkIntegrator(partial(make_integrator, name, timestep)) for name in names}
+    return {label(name): at_divisor(name, timestep) for name in names}
 
 
 def equal_cost_label(k: int | str) -> str:
@@ -97,14 +89,14 @@ def equal_cost_label(k: int | str) -> str:
     return f"{label('rattle')} h/{k}"
 
 
-def equal_cost_rattle(timestep: float, k: int) -> BenchmarkIntegrator:
+def equal_cost_rattle(timestep: float, k: int) -> SubStepped:
     """RATTLE at h/k, k sub-steps per benchmark step: the same force evaluations as k per step."""
-    return BenchmarkIntegrator(partial(make_integrator, "rattle", timestep / k), substeps=k)
+    return at_divisor("rattle", timestep, k)
 
 
 def _run_one(
     name: str,
-    spec: BenchmarkIntegrator,
+    spec: SubStepped,
     box: PreparedSystem,
     plat: mm.Platform,
     samples: int,
@@ -167,7 +159,7 @@ BLOW_UP_ENERGY = 1e4
 
 def run_energy_benchmark(
     box: PreparedSystem,
-    integrators: dict[str, BenchmarkIntegrator],
+    integrators: dict[str, SubStepped],
     *,
     platform: str = "CPU",
     steps: int = 10_000,

@@ -124,8 +124,18 @@ def cmd_compare(args) -> int:
     options = _run_options(args)
     output = args.output or f"alphaprk-compare-{args.system}"
     system = _prepare(args.system, args, rebuild=True, specs=specs) if args.rebuild else args.system
+    if args.accuracy_steps < 0:
+        raise InputError(
+            f"--accuracy-steps must be 0 (none) or a positive number of steps, got {args.accuracy_steps}."
+        )
     result = compare(
-        system, args.integrators, output, options, plot=not args.no_plot, equal_cost=not args.no_equal_cost
+        system,
+        args.integrators,
+        output,
+        options,
+        plot=not args.no_plot,
+        equal_cost=not args.no_equal_cost,
+        accuracy_steps=args.accuracy_steps,
     )
     print(result.table)
     print(

@@ -7,13 +7,14 @@ import re
 
 from ..runs.integrator_names import INTEGRATOR_HELP, INTEGRATOR_NAMES
 from ..runs.options import DEFAULTS, PRECISIONS
-from ..workflows.comparison import DEFAULT_INTEGRATORS, DEFAULT_SYSTEM, VERLET_NOTE
+from ..workflows.comparison import ACCURACY_STEPS, DEFAULT_INTEGRATORS, DEFAULT_SYSTEM, VERLET_NOTE
 from .quantities import positive
 
 #: ``alphaprk bench`` subcommands: the module whose ``main(argv)`` runs each.
 BENCHMARKS = {
     "cost": "openmm_alphaprk.benchmarks.cost",
     "energy": "openmm_alphaprk.benchmarks.energy",
+    "accuracy": "openmm_alphaprk.benchmarks.accuracy",
 }
 
 
@@ -104,8 +105,9 @@ def _add_compare_parser(sub) -> None:
             "energy_residuals.png into the output folder, by default alphaprk-compare-<system> in the "
             "current directory (-o to choose another). After the listed runs, RATTLE also runs at h/k "
             "for the same simulated time, k the force evaluations per step of an energy-mode row rounded "
-            "up: the table states each energy mode's gain at equal cost (--no-equal-cost skips it). "
-            + VERLET_NOTE
+            "up: the table states each energy mode's gain at equal cost (--no-equal-cost skips it). Each "
+            "row's position error against RATTLE at h/64 after a few steps (--accuracy-steps, 0: none) is "
+            "the table's last column: exact energy is not accurate dynamics. " + VERLET_NOTE
         ),
         epilog=f"Integrators: {INTEGRATOR_HELP}.",
     )
@@ -131,6 +133,14 @@ def _add_compare_parser(sub) -> None:
         "--no-equal-cost",
         action="store_true",
         help="skip the RATTLE h/k row(s) that give the energy modes' gain at equal cost",
+    )
+    comp.add_argument(
+        "--accuracy-steps",
+        type=int,
+        default=ACCURACY_STEPS,
+        metavar="N",
+        help=f"steps after which each row's position error against RATTLE at h/64 is taken, from the "
+        f"start (default {ACCURACY_STEPS}: 20 fs at 2 fs; 0 skips it)",
     )
     _add_rebuild(comp)
     _add_run_options(comp)
@@ -195,13 +205,15 @@ def _add_sweep_parser(sub) -> None:
 def _add_bench_parser(sub) -> None:
     bench = sub.add_parser(
         "bench",
-        help="benchmarks against RATTLE: `bench cost` (time per step), `bench energy` (H - E_ref)",
+        help="benchmarks against RATTLE: `bench cost` (time per step), `bench energy` (H - E_ref), "
+        "`bench accuracy` (trajectory error against a small-step reference)",
         description=(
             "cost: time per step and per force evaluation of each integrator against RattleIntegrator, "
             "interleaved rounds on one water box. energy: H - E_ref of the energy modes against RATTLE from "
             "the same start, at the same step and at equal cost; --system tip3p-3nm villin runs the "
-            "package's systems in one run. `alphaprk bench cost --help` and `alphaprk bench energy --help` "
-            "list their options."
+            "package's systems in one run. accuracy: position and velocity errors against RATTLE at h/64 "
+            "after several horizons, with RATTLE and RATTLE + rescaling at equal force evaluations and "
+            "RATTLE at equal wall time. `alphaprk bench NAME --help` lists each one's options."
         ),
     )
     bench.add_argument("benchmark", choices=BENCHMARKS, help="which benchmark")

@@ -31,8 +31,10 @@ Names (:data:`VOCABULARY`, in the order ``--help`` lists them):
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from dataclasses import dataclass
 from fractions import Fraction
+from functools import partial
 
 import openmm as mm
 import openmm.unit as unit
@@ -233,6 +235,26 @@ def make_integrator(
     integrator = mm.VerletIntegrator(timestep)
     integrator.setConstraintTolerance(constraint_tolerance)
     return integrator
+
+
+@dataclass(frozen=True)
+class SubStepped:
+    """An integrator taken ``substeps`` steps at a time: one step of h of a row that runs at h/substeps.
+
+    RATTLE at h/k, k steps per step of h, costs k force evaluations per step of h: the
+    equal-cost rows of the benchmarks and comparisons.
+    """
+
+    make: Callable[[], mm.Integrator]
+    substeps: int = 1
+
+
+def at_divisor(
+    spec: str | IntegratorSpec, timestep: float, divisor: int = 1, constraint_tolerance: float = 1e-8
+) -> SubStepped:
+    """Return the integrator ``spec`` at h/``divisor`` (h = ``timestep``, ps), ``divisor`` steps a step."""
+    make = partial(make_integrator, spec, timestep / divisor, constraint_tolerance)
+    return SubStepped(make, substeps=divisor)
 
 
 def check_compatible(

@@ -6,18 +6,21 @@ import json
 import os
 import textwrap
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 from .._units import InputError
 from ..observables import VERLET_IS_LEAPFROG, drift_text, equal_cost_divisor
 from ..runs import RunOptions, RunSummary, run_nve, rundir
-from ..runs.integrator_names import IntegratorSpec, check_compatible, parse_integrator
+from ..runs.accuracy import REFERENCE_DIVISOR, Horizon, short_horizon_errors
+from ..runs.integrator_names import IntegratorSpec, at_divisor, check_compatible, parse_integrator
 from ..runs.reporters import EVERY_STEP
 from ..systems import PreparedSystem, load_definition, prepare_system
 
 DEFAULT_SYSTEM = "tip3p-3nm"
-DEFAULT_INTEGRATORS = ("rattle", "energy4", "alpha4=0", "verlet")
+DEFAULT_INTEGRATORS = ("rattle", "rattle+rescale", "energy4", "alpha4=0", "verlet")
+#: Steps of h after which each row's position error is taken against RATTLE at h/64 (2 fs: 20 fs).
+ACCURACY_STEPS = 10
 COMPARISON_FILE = "comparison.json"
 FIGURE_FILE = "energy_residuals.png"
 
@@ -33,6 +36,7 @@ class Comparison:
     table: str
     output: Path
     figure: Path | None
+    accuracy: dict[str, Horizon] = field(default_factory=dict)
 
 
 def compare(
@@ -43,6 +47,7 @@ def compare(
     *,
     plot: bool = True,
     equal_cost: bool = True,
+    accuracy_steps: int = ACCURACY_STEPS,
     **keywords,
 ) -> Comparison:
     """Run every integrator from the same start state and compare energy conservation and cost.
@@ -75,6 +80,11 @@ def compare(
         measured force evaluations per step of an energy-mode row rounded up (one run
         per distinct k; folder ``rattle_h_k``), and state each energy-mode row's gain at
         equal cost, RMS(H − E_ref) of RATTLE at h/k over the row's (table, JSON).
+    accuracy_steps
+        Also give every row's position error against RATTLE at h/64 after this many
+        steps from the start (a separate short run of each; 0: none), the table's
+        ``pos. error`` column, and state it in the gains at equal cost. Not for
+        ``verlet``, which reads the start's velocities as half-step velocities.
 
     Raises
     ------
@@ -98,13 +108,36 @@ def compare(
             name = equal_cost_name(k)
             directories[name] = output / rundir.folder_name(name)
             summaries.append(_run_equal_cost_rattle(prepared, k, directories[name], options))
-    gains = equal_cost_gains(summaries)
+    accuracy = _accuracy(prepared, specs, summaries, options, accuracy_steps)
+    gains = equal_cost_gains(summaries, accuracy)
     header = _header(prepared, summaries[0], options)
-    table = format_comparison_table(summaries, header, any(spec.kind == "verlet" for spec in specs), gains)
+    table = format_comparison_table(
+        summaries, header, any(spec.kind == "verlet" for spec in specs), gains, accuracy
+    )
     leapfrog = [spec.name for spec in specs if spec.kind == "verlet"]
     figure = _figure(directories, output, summaries[0], options, leapfrog) if plot else None
-    _write(output, prepared.name, header, directories, summaries, figure, table, gains)
-    return Comparison(prepared.name, summaries, table, output, figure)
+    _write(output, prepared.name, header, directories, summaries, figure, table, gains, accuracy)
+    return Comparison(prepared.name, summaries, table, output, figure, accuracy)
+
+
+def _accuracy(
+    prepared: PreparedSystem,
+    specs: list[IntegratorSpec],
+    summaries: list[RunSummary],
+    options: RunOptions,
+    steps: int,
+) -> dict[str, Horizon]:
+    """Each row's error against RATTLE at h/64 after ``steps`` steps of h (short runs from the start)."""
+    if steps <= 0:
+        return {}
+    h = options.timestep_ps
+    rows = {spec.name: at_divisor(spec, h) for spec in specs if spec.kind != "verlet"}
+    for summary in summaries:
+        if summary.integrator.startswith(equal_cost_name("")):
+            k = int(summary.integrator.rpartition("/")[2])
+            rows[summary.integrator] = at_divisor("rattle", h, k)
+    properties = {"Precision": options.precision} if options.precision else None
+    return short_horizon_errors(prepared, rows, h, steps, platform=options.platform, properties=properties)
 
 
 def equal_cost_name(k: int) -> str:
@@ -138,8 +171,16 @@ def _run_equal_cost_rattle(
     return replace(run_nve(prepared, spec, directory, rattle_options), integrator=equal_cost_name(k))
 
 
-def equal_cost_gains(summaries: Sequence[RunSummary]) -> list[dict]:
-    """For each energy-mode row with a RATTLE h/k row: k and RMS(H − E_ref) of RATTLE h/k over the row's."""
+def equal_cost_gains(
+    summaries: Sequence[RunSummary], accuracy: dict[str, Horizon] | None = None
+) -> list[dict]:
+    """For each energy-mode row with a RATTLE h/k row: k and RMS(H − E_ref) of RATTLE h/k over the row's.
+
+    With ``accuracy`` (:func:`_accuracy`'s errors) also both rows' RMS position errors and
+    their ratio, ``position_gain`` (RATTLE h/k's over the row's: below 1, RATTLE at equal
+    cost is the more accurate).
+    """
+    accuracy = accuracy or {}
     by_name = {summary.integrator: summary for summary in summaries}
     gains = []
     for summary in summaries:
@@ -148,31 +189,44 @@ def equal_cost_gains(summaries: Sequence[RunSummary]) -> list[dict]:
         k = equal_cost_divisor(summary.force_evaluations_per_step)
         rattle = by_name.get(equal_cost_name(k))
         if rattle is not None:
-            gains.append(
-                {
-                    "integrator": summary.integrator,
-                    "k": k,
-                    "rattle_row": rattle.integrator,
-                    "rms_residual": summary.rms_residual,
-                    "rattle_rms_residual": rattle.rms_residual,
-                    "gain": rattle.rms_residual / summary.rms_residual,
-                }
-            )
+            gain = {
+                "integrator": summary.integrator,
+                "k": k,
+                "rattle_row": rattle.integrator,
+                "rms_residual": summary.rms_residual,
+                "rattle_rms_residual": rattle.rms_residual,
+                "gain": rattle.rms_residual / summary.rms_residual,
+            }
+            if summary.integrator in accuracy and rattle.integrator in accuracy:
+                mine, theirs = accuracy[summary.integrator], accuracy[rattle.integrator]
+                gain.update(
+                    position_time_fs=mine.time_fs,
+                    position_error=mine.position_rms,
+                    rattle_position_error=theirs.position_rms,
+                    position_gain=theirs.position_rms / mine.position_rms,
+                )
+            gains.append(gain)
     return gains
+
+
+def _ratio_text(ratio: float) -> str:
+    """Say a ratio of the baseline's error over the row's as lower or higher, never as '0.85x lower'."""
+    return f"{ratio:.3g}x lower" if ratio >= 1 else f"{1 / ratio:.3g}x higher: no gain at equal cost"
 
 
 def gain_line(gain: dict) -> str:
     """Return the table's line for one energy-mode row's gain at equal cost (or its loss, said as such)."""
-    verdict = (
-        f"{gain['gain']:.3g}x lower"
-        if gain["gain"] >= 1
-        else f"{1 / gain['gain']:.3g}x higher: no gain at equal cost"
-    )
-    return (
+    line = (
         f"{gain['integrator']} at equal cost: RMS|H - E_ref| {gain['rms_residual']:.3g} kJ/mol against "
         f"{gain['rattle_row']} ({gain['k']} RATTLE steps of h/{gain['k']} per step of h, the same force "
-        f"evaluations) {gain['rattle_rms_residual']:.3g}: {verdict}"
+        f"evaluations) {gain['rattle_rms_residual']:.3g}: {_ratio_text(gain['gain'])}"
     )
+    if "position_gain" in gain:
+        line += (
+            f"; RMS position error after {gain['position_time_fs']:g} fs {gain['position_error']:.2g} nm "
+            f"against {gain['rattle_position_error']:.2g}: {_ratio_text(gain['position_gain'])}"
+        )
+    return line
 
 
 def _check_output(output: Path, plot: bool) -> None:
@@ -284,6 +338,7 @@ def _write(
     figure: Path | None,
     table: str,
     gains: list[dict],
+    accuracy: dict[str, Horizon],
 ) -> None:
     """Write ``comparison.json`` and ``table.txt``."""
     (output / COMPARISON_FILE).write_text(
@@ -294,6 +349,10 @@ def _write(
                 "runs": {name: str(directory) for name, directory in directories.items()},
                 "summaries": [summary.as_dict() for summary in summaries],
                 "equal_cost": gains,
+                "accuracy": {
+                    "reference": f"RATTLE at h/{REFERENCE_DIVISOR}, constraint tolerance 1e-10, same start",
+                    "rows": {name: asdict(horizon) for name, horizon in accuracy.items()},
+                },
                 "figure": str(figure) if figure else None,
             },
             indent=2,
@@ -315,6 +374,13 @@ ENERGY_NOTE = (
     "± its standard error (widened for correlated rows); 'not resolved' when |drift| < 2 standard "
     "errors: the run is too short to tell it from zero."
 )
+#: What the position-error column is, printed under the table.
+ACCURACY_NOTE = (
+    "pos. error: RMS over atoms of the distance to RATTLE at h/64 (constraint tolerance 1e-10) after "
+    "{after:g} fs, each row run again from the start; a measure of how close the dynamics stays to the "
+    "true dynamics, which holding the energy does not make closer ('-': not measured; verlet reads the "
+    "start's velocities as half-step velocities)."
+)
 #: What "fell back" and "at a bound" mean, printed under the energy mode's line.
 CONTROLLER_NOTE = (
     "fell back = the step ended with |H - E_ref| above the energy tolerance (alpha* stopped at a "
@@ -325,31 +391,51 @@ _WRAP = 110
 
 
 def format_comparison_table(
-    summaries: Sequence[RunSummary], header: str = "", verlet_note: bool = True, gains: Sequence[dict] = ()
+    summaries: Sequence[RunSummary],
+    header: str = "",
+    verlet_note: bool = True,
+    gains: Sequence[dict] = (),
+    accuracy: dict[str, Horizon] | None = None,
 ) -> str:
     """Format the comparison table as plain text (units in the column titles), with its notes.
 
     Drifts are printed by :func:`~openmm_alphaprk.observables.drift_text` (± standard
     error, or "not resolved"), energies with three significant digits, as in the figure.
-    ``gains`` (:func:`equal_cost_gains`) adds a line per energy-mode row.
+    ``gains`` (:func:`equal_cost_gains`) adds a line per energy-mode row; ``accuracy``
+    (row name → :class:`~openmm_alphaprk.runs.accuracy.Horizon`) a column of RMS position
+    errors against RATTLE at h/64.
     """
+    accuracy = accuracy or {}
+    width = max([14, *(len(s.integrator) + 1 for s in summaries)])
+    after = next(iter(accuracy.values())).time_fs if accuracy else None
+    position = f" {'pos. error':>10}" if accuracy else ""
     lines = [header] if header else []
     lines.append(
-        f"{'integrator':<12} {'steps':>6}  {'drift/DOF':<26} {'RMS|H-Eref|':>11} {'max|H-Eref|':>11} "
-        f"{'constraint':>11} {'evals/step':>10} {'ns/day':>8}"
+        f"{'integrator':<{width}} {'steps':>6}  {'drift/DOF':<26} {'RMS|H-Eref|':>11} {'max|H-Eref|':>11} "
+        f"{'constraint':>11} {'evals/step':>10} {'ns/day':>8}{position}"
     )
+    unit_line = f" {f'nm, {after:g} fs':>10}" if accuracy else ""
     lines.append(
-        f"{'':<12} {'':>6}  {'kJ/mol/ns ± std. error':<26} {'kJ/mol':>11} {'kJ/mol':>11} "
-        f"{'rel. error':>11} {'':>10} {'':>8}"
+        f"{'':<{width}} {'':>6}  {'kJ/mol/ns ± std. error':<26} {'kJ/mol':>11} {'kJ/mol':>11} "
+        f"{'rel. error':>11} {'':>10} {'':>8}{unit_line}"
     )
     for s in summaries:
         drift = drift_text(s.drift_per_dof, s.drift_per_dof_standard_error)
+        error = ""
+        if accuracy:
+            error = (
+                f" {accuracy[s.integrator].position_rms:>10.2e}"
+                if s.integrator in accuracy
+                else f" {'-':>10}"
+            )
         lines.append(
-            f"{s.integrator:<12} {s.steps:>6}  {drift:<26} {s.rms_residual:>11.3g} "
+            f"{s.integrator:<{width}} {s.steps:>6}  {drift:<26} {s.rms_residual:>11.3g} "
             f"{s.max_abs_residual:>11.3g} {s.max_relative_constraint_error:>11.1e} "
-            f"{s.force_evaluations_per_step:>10.2f} {s.ns_per_day:>8.2f}"
+            f"{s.force_evaluations_per_step:>10.2f} {s.ns_per_day:>8.2f}{error}"
         )
     lines += textwrap.wrap(ENERGY_NOTE, _WRAP)
+    if accuracy:
+        lines += textwrap.wrap(ACCURACY_NOTE.format(after=after), _WRAP)
     controllers = [s for s in summaries if s.controller]
     for s in controllers:
         lines += textwrap.wrap(controller_line(s.integrator, s.controller), _WRAP, subsequent_indent="  ")

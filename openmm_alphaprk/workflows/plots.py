@@ -279,3 +279,54 @@ def plot_xy(
     fig.savefig(path, dpi=120)
     plt.close(fig)
     return str(path)
+
+
+def plot_accuracy(systems: Mapping[str, Mapping], path: str | os.PathLike, title: str = "") -> str:
+    """Plot each system's RMS position error against time, one panel per system; returns the path.
+
+    ``systems``: the ``systems`` of ``alphaprk bench accuracy``'s JSON (each with ``rows``
+    and ``reference_convergence``). Rows at h are solid, rows at h/k dashed; the grey
+    dotted line is the reference's own difference from RATTLE at h/128, the floor below
+    which no error is resolved. The legend gives each row's force evaluations per step
+    and RMS(H − E_ref).
+    """
+    plt = pyplot()
+    panels = len(systems)
+    fig, axes = plt.subplots(1, panels, figsize=(5.2 * panels, 4.6), constrained_layout=True, squeeze=False)
+    for ax, (system, result) in zip(axes[0], systems.items()):
+        for index, row in enumerate(result["rows"]):
+            horizons = row["horizons"]
+            if not horizons:
+                continue
+            ax.plot(
+                [h["time_fs"] for h in horizons],
+                [h["position_rms"] for h in horizons],
+                ls="-" if row["divisor"] == 1 else "--",
+                marker="o",
+                ms=3,
+                lw=1.2,
+                color=_COLOURS[index % len(_COLOURS)],
+                label=f"{row['name']} ({row['force_evaluations_per_step']:.2g} ev., "
+                f"RMS|H−E_ref| {row['rms_residual']:.2g})",
+            )
+        floor = result.get("reference_convergence") or []
+        if floor:
+            ax.plot(
+                [h["time_fs"] for h in floor],
+                [h["position_rms"] for h in floor],
+                ls=":",
+                color="grey",
+                label="reference h/64 vs h/128",
+            )
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("time (fs)")
+        ax.set_ylabel("RMS position error per atom (nm)")
+        ax.set_title(textwrap.shorten(result.get("header", system), 90), fontsize=8)
+        ax.legend(fontsize=6.5, loc="upper left")
+        ax.grid(True, which="both", alpha=0.25)
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return str(path)
