@@ -346,7 +346,13 @@ def test_the_class_diagram_has_at_most_three_levels():
     from openmm_alphaprk import AlphaRattleEnergyIntegrator, RattleRescaleIntegrator
     from openmm_alphaprk.integrators.reference_energy import _ReferenceEnergy
 
-    for cls in (RattleIntegrator, RattleRescaleIntegrator, AlphaRattleIntegrator, AlphaRattleEnergyIntegrator):
+    integrators = (
+        RattleIntegrator,
+        RattleRescaleIntegrator,
+        AlphaRattleIntegrator,
+        AlphaRattleEnergyIntegrator,
+    )
+    for cls in integrators:
         ours = [c for c in cls.__mro__ if c.__module__.startswith("openmm_alphaprk")]
         levels = [c for c in ours if issubclass(c, mm.CustomIntegrator)]
         assert len(levels) <= 3, levels

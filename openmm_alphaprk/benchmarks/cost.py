@@ -46,7 +46,7 @@ class BenchmarkRow:
 
 #: Integrator names (:mod:`openmm_alphaprk.runs.integrator_names`) of the core benchmark; the first is
 #: the baseline of the time ratios.
-CORE = ("verlet", "rattle", "alpha=0", "alpha=1/6", "alpha=1/2")
+CORE = ("verlet", "rattle", "rattle+rescale", "alpha=0", "alpha=1/6", "alpha=1/2")
 #: Every program: the core set, α-RATTLE-4 (α = 0 and 0.05) and both energy modes.
 ALL = (*CORE, "alpha4=0", "alpha4=0.05", "energy", "energy4")
 

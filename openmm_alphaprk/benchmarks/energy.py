@@ -66,7 +66,7 @@ class EnergyRow:
 
 
 #: The rows, by integrator name (:mod:`openmm_alphaprk.runs.integrator_names`); the first is the baseline.
-INTEGRATOR_NAMES = ("rattle", "energy", "alpha4=0", "energy4")
+INTEGRATOR_NAMES = ("rattle", "rattle+rescale", "energy", "alpha4=0", "energy4")
 #: α-RATTLE-4's fixed α values scanned beside the energy modes (with ``alpha4=0``: the fixed-α scan).
 FIXED_ALPHA_SCAN = (0.005, 0.01, 0.015, 0.02)
 #: Label of the row whose force evaluations per step set k for the equal-cost RATTLE row.
@@ -418,7 +418,8 @@ def _parser() -> argparse.ArgumentParser:
         "--only",
         nargs="*",
         default=None,
-        help="run only these integrators, by name (energy, alpha4=0, energy4; rattle always runs)",
+        help="run only these integrators, by name (rattle+rescale, energy, alpha4=0, energy4; rattle always "
+        "runs)",
     )
     parser.add_argument(
         "--fixed-alpha",
