@@ -186,11 +186,12 @@ def test_energy_mode_runs_from_one_start_part_only_at_round_off(water_box, spec)
     """No host read of a sum or global before its kernel has finished.
 
     The platform's potential energy is not bitwise repeatable (measured on pocl: 1 ulp of
-    the total energy at identical positions, now and then); the energy mode feeds the
-    energy into α, so two runs from one start may part, and the chaotic dynamics then
-    amplify the difference. A stale read would make them part by far more than round-off
-    at the first step where they differ: a different α or trial count, or a position
-    change of the size of a step's.
+    the total energy at identical positions, now and then; on CUDA mixed the forces are
+    not either: two RATTLE runs differ by ~1e-10 nm after one step); the energy mode
+    feeds the energy into α, so two runs from one start may part, and the chaotic
+    dynamics then amplify the difference. A stale read would make them part by far more
+    than the platform's own round-off at the first step where they differ: a different
+    trial count, or a position change of the size of a step's (1e-3 nm).
     """
     steps = 40
     first, second = (
@@ -206,10 +207,24 @@ def test_energy_mode_runs_from_one_start_part_only_at_round_off(water_box, spec)
     if not differs.any():
         return  # bitwise the same run
     step = int(np.argmax(differs))
+    x_noise, energy_noise = _rattle_repeatability(water_box, spec, step + 1)
     assert first["trials"][step] == second["trials"][step], f"step {step + 1}"
-    assert np.abs(first["x"][step] - second["x"][step]).max() < 1e-12, f"step {step + 1}"
-    assert abs(first["energy"][step] - second["energy"][step]) < 1e-13 * abs(first["energy"][step])
-    assert abs(first["alpha"][step] - second["alpha"][step]) < 1e-9
+    assert np.abs(first["x"][step] - second["x"][step]).max() < max(1e-12, 100 * x_noise), f"step {step + 1}"
+    energy_bound = max(1e-13 * abs(first["energy"][step]), 100 * energy_noise)
+    assert abs(first["energy"][step] - second["energy"][step]) < energy_bound
+    assert abs(first["alpha"][step] - second["alpha"][step]) < (1e-9 if x_noise == 0 else 1e-6)
+
+
+def _rattle_repeatability(box, spec, steps):
+    """Largest position and total-energy difference of two RATTLE runs of ``steps`` steps from one start."""
+    runs = []
+    for _ in range(2):
+        integrator = RattleIntegrator(H)
+        context = _context(box.system, integrator, spec, box.positions, box.velocities)
+        integrator.step(steps)
+        runs.append((positions_of(context), total_energy(context)))
+    (x1, e1), (x2, e2) = runs
+    return float(np.abs(x1 - x2).max()), abs(e1 - e2)
 
 
 @pytest.mark.parametrize("spec", configured())

@@ -122,14 +122,21 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         ):
             self.addGlobalVariable(name, 0)
         self.addGlobalVariable(VELOCITY_SCALE, 1)
-        self.addPerDofVariable("rigid_velocity", 0)
+        for name in ("fstart", "rigid_velocity"):
+            self.addPerDofVariable(name, 0)
 
     # ---------------------------------------------------------------- the program
     def _build_program(self) -> None:
-        """Add the RATTLE step, then the rigid-body motion, the scale factor and the scaled velocities."""
-        self._add_save_step_start()
+        """Add the RATTLE step, then the rigid-body motion, the scale factor and the scaled velocities.
+
+        F(x0) is copied before the reference check, whose energy read would otherwise be
+        the step's first evaluation (see :meth:`~.reference_energy._ReferenceEnergy._add_reference_check`:
+        measured on CUDA, the forces read after it were wrong; the positions after 5 steps
+        differed from Reference's by 3.7e-3 nm).
+        """
+        self._add_save_step_start(fstart="f")
         self._add_reference_check()
-        self._add_position_solve("0.5*f")
+        self._add_position_solve("0.5*fstart")
         self._add_velocity_update("0.5*f")
         self._add_rigid_body_motion()
         self._add_scale_factor()
