@@ -19,7 +19,7 @@ warns about the System's barostats and thermostats and about forces that are not
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import openmm as mm
 import openmm.unit as unit
@@ -75,7 +75,9 @@ class _ReferenceEnergy:
         for name in ("xend", "vend"):
             self.addPerDofVariable(name, 0)
 
-    def _add_reference_check(self, on_retake: Sequence[tuple[str, str]] = ()) -> None:
+    def _add_reference_check(
+        self, on_retake: Sequence[tuple[str, str]] = (), on_moved: Callable[[], None] | None = None
+    ) -> None:
         """Take E_ref at the first step, after a reset, and after the user changed the state.
 
         A start state that differs from the end of the previous step (a sum over
@@ -83,7 +85,7 @@ class _ReferenceEnergy:
         energy decides: the common platform's reordering and re-wrapping of atoms move
         coordinates but keep the energy. ``on_retake``: ``(variable, expression)``
         computations that run in the block after ``retake`` is set (the energy mode
-        forgets its predictor there).
+        forgets its predictor there); ``on_moved`` adds computations at the block's start.
 
         The force at x0 must have been read (copied) before this block: with the
         energy read here as a step's first evaluation and ``f`` read after it, the
@@ -92,6 +94,8 @@ class _ReferenceEnergy:
         """
         self._add_sum("state_moved", "(x - xend)^2 + (v - vend)^2")
         self.beginIfBlock("state_moved + 1 - reference_set > 0")
+        if on_moved is not None:
+            on_moved()
         self._add_sum("kinetic_energy", "0.5*m*v*v")
         self.addComputeGlobal("start_energy", "energy + kinetic_energy")
         self.addComputeGlobal(
