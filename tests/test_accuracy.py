@@ -129,7 +129,9 @@ def test_the_command_writes_json_and_figure_and_skips_finished_systems(tmp_path,
     assert main(argv) == 0
     result = json.loads(out.read_text())
     rows = result["systems"]["water-cluster"]["rows"]
-    assert [row["name"] for row in rows] == ["RATTLE", "RATTLE + rescaling"]
+    assert [row["name"] for row in rows[:2]] == ["RATTLE", "RATTLE + rescaling"]
+    # taking the rigid rotation out costs a small cluster several RATTLE steps: RATTLE at h/r joins
+    assert all(row["role"].startswith("equal wall time (rattle+rescale)") for row in rows[2:])
     assert figure.stat().st_size > 10_000
     assert "RATTLE + rescaling" in capsys.readouterr().out
     assert main(argv) == 0  # the same settings: the finished system is not run again
