@@ -251,3 +251,10 @@ def test_cli_runs_a_sweep_through_the_installed_script(tmp_path, cache):
         env=env,
     )
     assert bad.returncode == 2 and "does not exist" in bad.stderr
+
+
+def test_rattle_plus_rescale_is_a_sweep_integrator_with_its_own_folder():
+    grid = [{"systems": ["water-cluster"], "integrators": ["rattle", "rattle+rescale"], "timesteps_fs": [2]}]
+    cells = parse_config({"output": "o", "run": {"duration_ps": 0.1}, "grid": grid}).cells
+    assert [c.integrator for c in cells] == ["rattle", "rattle+rescale"]
+    assert len({c.name for c in cells}) == 2 and "rattle+rescale" in cells[1].name

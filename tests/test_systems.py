@@ -36,7 +36,7 @@ from openmm_alphaprk.systems.cache import system_key
 from openmm_alphaprk.systems.definitions import DEFINITIONS_DIR
 from openmm_alphaprk.systems.shipped import STATES_DIR, shipped_key, topology_fingerprint
 
-INTEGRATORS = ("rattle", "alpha=1/6", "energy", "verlet")
+INTEGRATORS = ("rattle", "rattle+rescale", "alpha=1/6", "energy", "verlet")
 EXPECTED = {"tip3p-2nm", "tip3p-3nm", "tip3p-4nm", "spce-3nm", "tip4pew-3nm", "water-cluster", "villin"}
 #: The main job's system and the small ones the tests use start from shipped states.
 SHIPPED = {"tip3p-3nm", "tip3p-2nm", "water-cluster"}
@@ -261,7 +261,7 @@ def test_every_system_runs_every_integrator(name, cache, tmp_path):
         assert summary.steps == 3 and summary.n_atoms == prepared.n_atoms
         assert np.isfinite(summary.rms_residual) and summary.max_abs_residual < 50.0
         assert summary.max_relative_constraint_error < 1e-6
-        if integrator in ("rattle", "verlet"):
+        if integrator in ("rattle", "rattle+rescale", "verlet"):
             assert summary.force_evaluations_per_step == 1.0
         else:
             assert summary.force_evaluations_per_step > 1.0

@@ -457,7 +457,12 @@ def _parser() -> argparse.ArgumentParser:
         help=f"steps of h after which errors are taken (default {' '.join(map(str, HORIZONS))})",
     )
     parser.add_argument("--platform", default="CPU", help="OpenMM platform (default CPU)")
-    parser.add_argument("--precision", choices=("single", "mixed", "double"), default=None)
+    parser.add_argument(
+        "--precision",
+        choices=("single", "mixed", "double"),
+        default=None,
+        help="precision on CUDA, OpenCL or HIP (default: the platform's)",
+    )
     parser.add_argument(
         "--equilibrium-ps",
         type=float,

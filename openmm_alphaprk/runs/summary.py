@@ -11,7 +11,7 @@ import openmm as mm
 import openmm.app as app
 import openmm.unit as unit
 
-from ..integrators import PACKAGE_INTEGRATORS, AlphaRattleEnergyIntegrator
+from ..integrators import PACKAGE_INTEGRATORS, AlphaRattleEnergyIntegrator, RattleRescaleIntegrator
 from ..observables import (
     VERLET_IS_LEAPFROG,
     EnergyDrift,
@@ -120,7 +120,7 @@ def summarize(
         velocity_verlet=spec.velocity_verlet,
         controller=_controller(output, integrator),
         momentum_change=momentum_change,
-        notes=_notes(spec),
+        notes=_notes(spec, integrator),
     )
 
 
@@ -166,8 +166,15 @@ def read_summary(path: Path) -> RunSummary | None:
     return RunSummary(**{key: value for key, value in stored.items() if key in names})
 
 
-def _notes(spec: IntegratorSpec) -> list[str]:
-    """Return the caveats of the integrator (leapfrog velocities)."""
+def _notes(spec: IntegratorSpec, integrator: mm.Integrator) -> list[str]:
+    """Return the caveats of the integrator (leapfrog velocities) and what a rescaling removed."""
+    if isinstance(integrator, RattleRescaleIntegrator) and integrator.steps_taken:
+        totals = integrator.rescale_totals()
+        return [
+            f"{spec.name}: the velocity scaling removed RATTLE's energy error of RMS "
+            f"{totals['rms_rattle_residual']:.3g} kJ/mol per step (max |s - 1| "
+            f"{totals['max_abs_scale_change']:.2g}, E_ref taken {totals['reference_resets']} time(s))."
+        ]
     if spec.velocity_verlet:
         return []
     return [

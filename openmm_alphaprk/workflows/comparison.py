@@ -451,6 +451,10 @@ def format_comparison_table(
                 f"{m['linear_amu_nm_per_ps']:.1e} amu nm/ps, of angular momentum "
                 f"{m['angular_amu_nm2_per_ps']:.1e} amu nm^2/ps"
             )
+    for s in summaries:  # what a rescaling removed (the leapfrog caveat is VERLET_NOTE, below)
+        for note in s.notes:
+            if not note.startswith(VERLET_IS_LEAPFROG):
+                lines += textwrap.wrap(note, _WRAP, subsequent_indent="  ")
     if verlet_note:
         lines.append(VERLET_NOTE)
     return "\n".join(lines)

@@ -1,0 +1,171 @@
+r"""The tables of docs/accuracy.md from the JSON of ``alphaprk bench accuracy``.
+
+Run from the repository root, after the benchmark wrote ``docs/accuracy_benchmark_SYSTEM.json``::
+
+    python -m tools.reports.accuracy
+
+It rewrites the generated blocks of ``docs/accuracy.md`` (between ``<!-- generated: NAME
+-->`` and ``<!-- end generated: NAME -->``; the prose is left alone): per system the rows
+(cost, energy error, position and velocity errors at each horizon), the equal-cost
+verdicts of the energy mode, the equilibrium averages, and the momenta of the isolated
+cluster; and draws ``docs/figures/accuracy_benchmark.png``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+from openmm_alphaprk.workflows.plots import plot_accuracy
+from tools.reports.markdown import markdown_table, update_page
+
+DOCS = Path(__file__).resolve().parents[2] / "docs"
+SYSTEMS = ("tip3p-2nm", "tip3p-3nm", "villin", "water-cluster")
+ENERGY_MODE = "α-RATTLE-4 energy mode"
+
+
+def _sci(value: float) -> str:
+    return "–" if value is None or not math.isfinite(value) else f"{value:.2g}"
+
+
+def rows_table(result: dict) -> str:
+    """Cost, RMS(H − E_ref) and RMS position error at every horizon (velocity at the first and last)."""
+    horizons = [h["time_fs"] for h in result["rows"][0]["horizons"]]
+    header = ["row", "evals/step", "time/step ÷ RATTLE", "RMS(H − E_ref) kJ/mol"]
+    header += [f"x err. {t:g} fs (nm)" for t in horizons]
+    header += [f"v err. {horizons[0]:g} fs", f"v err. {horizons[-1]:g} fs (nm/ps)"]
+    lines = []
+    for row in result["rows"]:
+        errors = {h["time_fs"]: h for h in row["horizons"]}
+        ratio = row["time_ratio"]
+        cells = [
+            f"**{row['name']}**" if row["divisor"] == 1 else row["name"],
+            f"{row['force_evaluations_per_step']:.2f}",
+            f"{ratio:.2f}" if ratio is not None and math.isfinite(ratio) else "",
+            _sci(row["rms_residual"]),
+        ]
+        cells += [_sci(errors[t]["position_rms"]) if t in errors else "–" for t in horizons]
+        cells += [
+            _sci(errors[t]["velocity_rms"]) if t in errors else "–" for t in (horizons[0], horizons[-1])
+        ]
+        lines.append(cells)
+    floor = result["reference_convergence"]
+    if floor:
+        lines.append(
+            ["reference h/64 − h/128", "", "", ""]
+            + [_sci(h["position_rms"]) for h in floor]
+            + [_sci(floor[0]["velocity_rms"]), _sci(floor[-1]["velocity_rms"])]
+        )
+    return markdown_table(header, lines)
+
+
+def verdicts(result: dict) -> str:
+    """Compare the energy mode with RATTLE and RATTLE + rescaling at its k, and RATTLE at its wall time."""
+    by_name = {row["name"]: row for row in result["rows"]}
+    mode = by_name.get(ENERGY_MODE)
+    if mode is None:
+        return "(no energy-mode row)"
+    lines = []
+    for row in result["rows"]:
+        if "(energy4)" not in row["role"]:
+            continue
+        first, last = mode["horizons"][0], mode["horizons"][-1]
+        theirs = {h["time_fs"]: h for h in row["horizons"]}
+        position = [theirs[h["time_fs"]]["position_rms"] / h["position_rms"] for h in (first, last)]
+        energy = row["rms_residual"] / mode["rms_residual"]
+        lines.append(
+            [
+                row["name"],
+                row["role"],
+                _ratio(energy),
+                _ratio(position[0]),
+                _ratio(position[1]),
+            ]
+        )
+    header = [
+        "against",
+        "why",
+        "RMS(H − E_ref): theirs ÷ energy mode's",
+        f"x error at {mode['horizons'][0]['time_fs']:g} fs",
+        f"x error at {mode['horizons'][-1]['time_fs']:g} fs",
+    ]
+    return markdown_table(header, lines)
+
+
+def _ratio(value: float) -> str:
+    """Say a ratio of the baseline's error over the energy mode's (above 1 the energy mode wins)."""
+    if not math.isfinite(value):
+        return "–"
+    return f"{value:.3g}× (energy mode better)" if value >= 1 else f"{value:.3g}× (energy mode worse)"
+
+
+def equilibrium_table(result: dict) -> str:
+    """Each quantity's mean ± SE, and each row's difference from the reference with its verdict."""
+    equilibrium = result.get("equilibrium") or {}
+    if not equilibrium:
+        return "(not measured for this system)"
+    keys = list(next(iter(equilibrium.values())))
+    titles = {
+        "temperature_K": "T (K)",
+        "potential_kJ_per_mol": "V (kJ/mol)",
+        "rdf_peak_height": "O–O g(r) peak",
+        "rdf_peak_position_nm": "peak position (nm)",
+    }
+    lines = []
+    for name, averages in equilibrium.items():
+        cells = [name]
+        for key in keys:
+            a = averages[key]
+            text = f"{a['mean']:.5g} ± {a['standard_error']:.2g}"
+            if a["difference"] is not None:
+                verdict = "**resolved**" if a["resolved"] else "not resolved"
+                text += f"; Δ {a['difference']:+.2g} ± {a['difference_standard_error']:.2g}, {verdict}"
+            cells.append(text)
+        lines.append(cells)
+    return markdown_table(["row", *(titles.get(key, key) for key in keys)], lines)
+
+
+def momentum_table(result: dict) -> str:
+    """Largest change of P and L of every row (an isolated system)."""
+    lines = []
+    for row in result["rows"]:
+        m = row["momentum_change"]
+        if m:
+            lines.append(
+                [row["name"], f"{m['linear_amu_nm_per_ps']:.1e}", f"{m['angular_amu_nm2_per_ps']:.1e}"]
+            )
+    first = next(row["momentum_change"] for row in result["rows"] if row["momentum_change"])
+    header = [
+        "row",
+        f"max \\|ΔP\\| (amu nm/ps; \\|P\\| = {first['linear_start']:.3g})",
+        f"max \\|ΔL\\| (amu nm²/ps; \\|L\\| = {first['angular_start']:.3g})",
+    ]
+    return markdown_table(header, lines)
+
+
+def main() -> None:
+    systems = {}
+    for system in SYSTEMS:
+        path = DOCS / f"accuracy_benchmark_{system}.json"
+        if path.is_file():
+            systems[system] = json.loads(path.read_text(encoding="utf-8"))["systems"][system]
+    tables = {}
+    for system, result in systems.items():
+        tables[f"{system} header"] = result["header"]
+        tables[f"{system} rows"] = rows_table(result)
+        if system != "water-cluster":
+            tables[f"{system} verdicts"] = verdicts(result)
+            tables[f"{system} equilibrium"] = equilibrium_table(result)
+        else:
+            tables[f"{system} momenta"] = momentum_table(result)
+    missing = update_page(DOCS / "accuracy.md", tables)
+    if missing:
+        raise SystemExit(f"docs/accuracy.md has no block for {missing}")
+    shown = {name: result for name, result in systems.items() if name != "water-cluster"}
+    plot_accuracy(shown, DOCS / "figures" / "accuracy_benchmark.png")
+    print("\n\n".join(f"{name}\n{text}" for name, text in tables.items()))
+
+
+if __name__ == "__main__":
+    main()
