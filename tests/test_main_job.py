@@ -5,7 +5,8 @@ The CPU platform sums forces in a thread-dependent order, so runs are not bitwis
 repeatable and the chaotic trajectories part after a few hundred steps: the README states
 its numbers to the precision checked here (RATTLE and triple jump 15 %, the energy mode
 within a factor 2, its force evaluations per step to 0.5; RATTLE at h/k to 15 %, the gain
-at equal cost within a factor 2).
+at equal cost within a factor 2; RATTLE + rescaling below 1/100 of RATTLE; the position
+errors after 20 fs: RATTLE at h/k to 15 %, the energy mode within a factor 2 and above it).
 """
 
 import math
@@ -22,22 +23,32 @@ README = Path(__file__).parents[1] / "README.md"
 def _readme_numbers() -> dict[str, float]:
     text = " ".join(README.read_text(encoding="utf-8").split())
     match = re.search(
-        r"RMS \|H − E_ref\| ([0-9.]+) kJ/mol for RATTLE, ([0-9.]+) for `energy4` at ([0-9.]+) force "
-        r"evaluations per step, ([0-9.]+) for `alpha4=0`",
+        r"RMS \|H − E_ref\| ([0-9.]+) kJ/mol for RATTLE, ([0-9.e-]+) for `rattle\+rescale`, ([0-9.]+) for "
+        r"`energy4` at ([0-9.]+) force evaluations per step, ([0-9.]+) for `alpha4=0`",
         text,
     )
     assert match, "the README's main-job sentence changed: update this test with it"
-    rattle, energy4, evaluations, triple_jump = map(float, match.groups())
+    rattle, rescale, energy4, evaluations, triple_jump = map(float, match.groups())
+    positions = re.search(
+        r"its position error after 20 fs is ([0-9.e-]+) nm against ([0-9.e-]+) for RATTLE at h/[0-9]+, "
+        r"([0-9.]+)× higher",
+        text,
+    )
+    assert positions, "the README's position-error sentence changed: update this test with it"
     equal_cost = re.search(r"and ([0-9.]+) for RATTLE at h/([0-9]+), so `energy4` is ([0-9.]+)× lower", text)
     assert equal_cost, "the README's equal-cost sentence changed: update this test with it"
     return {
         "rattle": rattle,
+        "rattle+rescale": rescale,
         "energy4": energy4,
         "evaluations": evaluations,
         "alpha4=0": triple_jump,
         "rattle h/k": float(equal_cost.group(1)),
         "k": int(equal_cost.group(2)),
         "gain": float(equal_cost.group(3)),
+        "energy4 position": float(positions.group(1)),
+        "rattle h/k position": float(positions.group(2)),
+        "position loss": float(positions.group(3)),
     }
 
 
@@ -55,6 +66,12 @@ def test_the_main_job_gives_the_readme_numbers(tmp_path):
     assert by_name[f"rattle h/{k}"].rms_residual == pytest.approx(expected["rattle h/k"], rel=0.15)
     gain = by_name[f"rattle h/{k}"].rms_residual / by_name["energy4"].rms_residual
     assert expected["gain"] / 2 <= gain <= 2 * expected["gain"]
+    assert by_name["rattle+rescale"].rms_residual <= by_name["rattle"].rms_residual / 100
+    positions = {name: horizon.position_rms for name, horizon in result.accuracy.items()}
+    assert positions[f"rattle h/{k}"] == pytest.approx(expected["rattle h/k position"], rel=0.15)
+    energy4 = expected["energy4 position"]
+    assert energy4 / 2 <= positions["energy4"] <= 2 * energy4
+    assert positions["energy4"] > positions[f"rattle h/{k}"]  # the loss the README states
 
 
 def test_the_readme_main_job_sentence_is_self_consistent():
@@ -63,3 +80,6 @@ def test_the_readme_main_job_sentence_is_self_consistent():
     assert numbers["k"] == math.ceil(numbers["evaluations"])
     assert numbers["gain"] == pytest.approx(numbers["rattle h/k"] / numbers["energy4"], rel=0.05)
     assert numbers["energy4"] < numbers["alpha4=0"] < numbers["rattle"]
+    assert numbers["rattle+rescale"] < numbers["rattle"] / 100
+    loss = numbers["energy4 position"] / numbers["rattle h/k position"]
+    assert numbers["position loss"] == pytest.approx(loss, rel=0.05)

@@ -285,27 +285,31 @@ def plot_accuracy(systems: Mapping[str, Mapping], path: str | os.PathLike, title
     """Plot each system's RMS position error against time, one panel per system; returns the path.
 
     ``systems``: the ``systems`` of ``alphaprk bench accuracy``'s JSON (each with ``rows``
-    and ``reference_convergence``). Rows at h are solid, rows at h/k dashed; the grey
-    dotted line is the reference's own difference from RATTLE at h/128, the floor below
-    which no error is resolved. The legend gives each row's force evaluations per step
-    and RMS(H − E_ref).
+    and ``reference_convergence``). One colour per integrator; rows at h are solid, rows at
+    h/k dashed with a marker per k; the grey dotted line is the reference's own difference
+    from RATTLE at h/128, the floor below which no error is resolved. The legend gives each
+    row's force evaluations per step and RMS(H − E_ref).
     """
     plt = pyplot()
     panels = len(systems)
-    fig, axes = plt.subplots(1, panels, figsize=(5.2 * panels, 4.6), constrained_layout=True, squeeze=False)
+    fig, axes = plt.subplots(1, panels, figsize=(5.4 * panels, 7.2), constrained_layout=True, squeeze=False)
+    markers = ("o", "s", "^", "v", "D", "P", "X", "*")
     for ax, (system, result) in zip(axes[0], systems.items()):
-        for index, row in enumerate(result["rows"]):
+        colours: dict[str, str] = {}
+        divisors = sorted({row["divisor"] for row in result["rows"]})
+        for row in result["rows"]:
             horizons = row["horizons"]
             if not horizons:
                 continue
+            colour = colours.setdefault(row["integrator"], _COLOURS[len(colours) % len(_COLOURS)])
             ax.plot(
                 [h["time_fs"] for h in horizons],
                 [h["position_rms"] for h in horizons],
                 ls="-" if row["divisor"] == 1 else "--",
-                marker="o",
-                ms=3,
-                lw=1.2,
-                color=_COLOURS[index % len(_COLOURS)],
+                marker=markers[divisors.index(row["divisor"]) % len(markers)],
+                ms=3.5,
+                lw=1.4 if row["divisor"] == 1 else 1.0,
+                color=colour,
                 label=f"{row['name']} ({row['force_evaluations_per_step']:.2g} ev., "
                 f"RMS|H−E_ref| {row['rms_residual']:.2g})",
             )
@@ -322,11 +326,14 @@ def plot_accuracy(systems: Mapping[str, Mapping], path: str | os.PathLike, title
         ax.set_yscale("log")
         ax.set_xlabel("time (fs)")
         ax.set_ylabel("RMS position error per atom (nm)")
-        ax.set_title(textwrap.shorten(result.get("header", system), 90), fontsize=8)
-        ax.legend(fontsize=6.5, loc="upper left")
+        atoms = result.get("header", "").split(":", 1)[-1].split(",", 1)[0].strip()
+        ax.set_title(f"{system} ({atoms})", fontsize=9)
+        ax.legend(fontsize=6.5, loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=1)
         ax.grid(True, which="both", alpha=0.25)
-    if title:
-        fig.suptitle(title, fontsize=10)
+    fig.suptitle(
+        title or "Position error against RATTLE at h/64, same start: solid at h, dashed at h/k",
+        fontsize=10,
+    )
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return str(path)
