@@ -136,3 +136,8 @@ def test_the_command_writes_json_and_figure_and_skips_finished_systems(tmp_path,
     assert "RATTLE + rescaling" in capsys.readouterr().out
     assert main(argv) == 0  # the same settings: the finished system is not run again
     assert "done in" in capsys.readouterr().err
+    written = out.read_text()
+    with pytest.raises(SystemExit):  # other settings: the results are not overwritten
+        main([*argv[:-4], "--timestep", "1", *argv[-4:]])
+    assert "other settings" in capsys.readouterr().err
+    assert out.read_text() == written

@@ -496,6 +496,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         "equilibrium_ps": args.equilibrium_ps,
     }
     results = _read_results(args.json, settings)
+    if results is None:
+        parser.error(
+            f"--json {args.json} holds the results of a run with other settings; give another file or "
+            "remove it (nothing was run)"
+        )
     for system in args.system:
         if system in results.get("systems", {}):
             print(f"{system}: done in {args.json}, skipped", file=sys.stderr)
@@ -542,14 +547,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     return 0
 
 
-def _read_results(path: str | None, settings: dict) -> dict:
-    """Return the results of an earlier run with the same settings (its finished systems), or a new record."""
+def _read_results(path: str | None, settings: dict) -> dict | None:
+    """Return an earlier run's results with the same settings (its finished systems), or a new record.
+
+    None if ``path`` holds results with other settings, which must not be overwritten.
+    """
     if path and Path(path).is_file():
         earlier = json.loads(Path(path).read_text(encoding="utf-8"))
-        if earlier.get("settings") == settings:
-            earlier.pop("running", None)
-            return earlier
-        print(f"{path} holds a run with other settings; it is replaced", file=sys.stderr)
+        if earlier.get("settings") != settings:
+            return None
+        earlier.pop("running", None)
+        return earlier
     return {"settings": settings, "systems": {}}
 
 
