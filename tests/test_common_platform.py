@@ -35,6 +35,9 @@ INTEGRATORS = {
     "alpha=1/2": lambda: AlphaRattleIntegrator(H, 0.5),
     "alpha4=0": lambda: AlphaRattleIntegrator(H, 0.0, order=4),
     "alpha4=0.05": lambda: AlphaRattleIntegrator(H, 0.05, order=4),
+    "alpha4=0.05:triple-jump": lambda: AlphaRattleIntegrator(H, 0.05, composition="triple-jump"),
+    "alpha4=0.05, alpha on every stage": lambda: AlphaRattleIntegrator(H, 0.05, order=4, alpha_stages="all"),
+    "alpha6=0": lambda: AlphaRattleIntegrator(H, 0.0, order=6),
     # the energy modes with α pinned to a point: their trials, restarts and midpoint
     # passes, with the controller's choices taken out of the comparison
     "energy (pinned)": lambda: AlphaRattleIntegrator(
@@ -44,6 +47,14 @@ INTEGRATORS = {
         H,
         "energy",
         order=4,
+        alpha_bounds=(0.05, 0.05 + 1e-9),
+        energy_tolerance=1e-9,
+        midpoint_tolerance=1e-10,
+    ),
+    "energy4:triple-jump (pinned)": lambda: AlphaRattleIntegrator(
+        H,
+        "energy",
+        composition="triple-jump",
         alpha_bounds=(0.05, 0.05 + 1e-9),
         energy_tolerance=1e-9,
         midpoint_tolerance=1e-10,

@@ -25,7 +25,9 @@ DEAD_SLOPE_SCALE = 5.9e8
 
 
 def _energy_mode(order: int) -> AlphaRattleIntegrator:
-    return AlphaRattleIntegrator(2 * unit.femtosecond, alpha="energy", order=order, energy_tolerance=0.01)
+    """The energy mode at order 2, or on the triple jump (order 4), whose controller these cases measured."""
+    composition = {"composition": "triple-jump"} if order == 4 else {}
+    return AlphaRattleIntegrator(2 * unit.femtosecond, alpha="energy", energy_tolerance=0.01, **composition)
 
 
 def test_inflated_slope_scale_recovers_within_a_dozen_steps(water_box):
@@ -189,7 +191,7 @@ def test_order4_energy_mode_beats_every_fixed_alpha_of_a_scan_on_a_solute(
     """Better than the best α the user could have fixed (582-atom solute in vacuum, Reference)."""
     steps = 200
     fixed = {
-        alpha: rms(_residuals_on(solute_in_vacuum, AlphaRattleIntegrator(0.002, alpha=alpha, order=4), steps))
+        alpha: rms(_residuals_on(solute_in_vacuum, AlphaRattleIntegrator(0.002, alpha=alpha, composition="triple-jump"), steps))
         for alpha in (0.0, 0.005, 0.01, 0.015, 0.02)
     }
     # the first 200 steps of the shared 300-step run are the 200-step run (Reference is deterministic)
@@ -306,8 +308,8 @@ def test_order4_energy_mode_beats_every_fixed_alpha_of_a_scan_on_solvated_villin
         return rms(energy_residuals(context, integrator, 150).residuals)
 
     alphas = (0.0, 0.005, 0.01, 0.015, 0.02)
-    fixed = {alpha: energy_rms(AlphaRattleIntegrator(0.002, alpha=alpha, order=4)) for alpha in alphas}
-    energy_mode = energy_rms(AlphaRattleIntegrator(0.002, alpha="energy", order=4))
+    fixed = {alpha: energy_rms(AlphaRattleIntegrator(0.002, alpha=alpha, composition="triple-jump")) for alpha in alphas}
+    energy_mode = energy_rms(AlphaRattleIntegrator(0.002, alpha="energy", composition="triple-jump"))
     assert energy_mode < min(fixed.values()), (energy_mode, fixed)
 
 
@@ -322,7 +324,7 @@ def test_a_step_whose_last_trial_did_worse_ends_in_its_best_trial(solute_in_vacu
     integrator = AlphaRattleIntegrator(
         2 * unit.femtosecond,
         alpha="energy",
-        order=4,
+        composition="triple-jump",
         max_trials=2,
         alpha_probe=0.2,
         max_alpha_change=0.2,
@@ -345,7 +347,7 @@ def test_a_step_whose_last_trial_did_worse_ends_in_its_best_trial(solute_in_vacu
     reference_energy = integrator.getGlobalVariableByName("reference_energy")
     assert total_energy(context) - reference_energy == pytest.approx(value["first_residual"], abs=1e-6)
 
-    triple_jump = AlphaRattleIntegrator(2 * unit.femtosecond, alpha=0.0, order=4)
+    triple_jump = AlphaRattleIntegrator(2 * unit.femtosecond, alpha=0.0, composition="triple-jump")
     expected = make_context(system, triple_jump, positions, velocities, REFERENCE)
     triple_jump.step(1)
     # to the constraint tolerance (1e-8 of 0.1 nm bonds; velocities: that over the 2.7 fs

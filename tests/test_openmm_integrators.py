@@ -367,7 +367,7 @@ def test_step_programs_are_small_and_start_quickly(water_box):
         (RattleIntegrator(0.002), 1),
         (AlphaRattleIntegrator(0.002, alpha=0.5), 5),
         (AlphaRattleIntegrator(0.002, alpha="energy"), 5),
-        (AlphaRattleIntegrator(0.002, alpha="energy", order=4), 6),
+        (AlphaRattleIntegrator(0.002, alpha="energy", composition="triple-jump"), 6),
     ):
         assert analysed_blocks(integrator) <= most
         ctx = make_context(

@@ -1,4 +1,4 @@
-"""α-RATTLE-4 (order=4): the triple-jump composition with α on the middle sub-step.
+"""α-RATTLE-4 (composition="triple-jump"): the triple-jump composition with α on the middle sub-step.
 
 Theory on the NumPy reference (orders, α* = O(h²), symplecticity with a contrast
 that must fail), then the OpenMM program against the reference and on water.
@@ -98,7 +98,7 @@ def test_symplectic_for_fixed_alpha_and_one_pass_is_not(pendulum, alpha):
 def test_openmm_agrees_with_numpy_reference_step_for_step(alpha, make_problem, tolerance):
     problem, x0, v0 = make_problem()
     integrator = AlphaRattleIntegrator(
-        0.002, alpha, order=4, constraint_tolerance=1e-12, midpoint_tolerance=1e-14
+        0.002, alpha, composition="triple-jump", constraint_tolerance=1e-12, midpoint_tolerance=1e-14
     )
     ctx = make_context(to_openmm_system(problem), integrator, x0.reshape(-1, 3), v0.reshape(-1, 3))
     x_ref, v_ref, xs, _ = integrate(problem, x0, v0, 0.002, 10, alpha, step=alpha_rattle4_step, record=True)
@@ -114,7 +114,7 @@ def test_openmm_agrees_with_numpy_reference_step_for_step(alpha, make_problem, t
 def test_water_cluster_keeps_constraints_and_angular_momentum(alpha):
     problem, x0, v0 = water_cluster(8, spacing=0.3, seed=5)
     integrator = AlphaRattleIntegrator(
-        0.002, alpha, order=4, constraint_tolerance=1e-12, midpoint_tolerance=1e-13
+        0.002, alpha, composition="triple-jump", constraint_tolerance=1e-12, midpoint_tolerance=1e-13
     )
     ctx = make_context(to_openmm_system(problem), integrator, x0.reshape(-1, 3), v0.reshape(-1, 3))
     ctx.applyConstraints(1e-12)
@@ -158,13 +158,13 @@ def test_energy_mode_on_a_water_box_is_far_below_rattle(water_box):
     rattle_rms = _energy_rms(
         make_context(water_box.system, rattle, water_box.positions, water_box.velocities), rattle, steps
     )
-    triple_jump = AlphaRattleIntegrator(0.002, 0.0, order=4)
+    triple_jump = AlphaRattleIntegrator(0.002, 0.0, composition="triple-jump")
     triple_rms = _energy_rms(
         make_context(water_box.system, triple_jump, water_box.positions, water_box.velocities),
         triple_jump,
         steps,
     )
-    integrator = AlphaRattleIntegrator(0.002, "energy", order=4, energy_tolerance=0.01)
+    integrator = AlphaRattleIntegrator(0.002, "energy", composition="triple-jump", energy_tolerance=0.01)
     ctx = make_context(water_box.system, integrator, water_box.positions, water_box.velocities)
     energy_rms = _energy_rms(ctx, integrator, steps)
     totals = integrator.controller_totals()
@@ -185,12 +185,15 @@ def test_order_is_checked_and_reported():
         AlphaRattleIntegrator(0.002, order=3)
     with pytest.raises(ValueError, match="order must be 2"):
         AlphaRattleIntegrator(0.002, order=True)
-    integrator = AlphaRattleIntegrator(0.002, "energy", order=4)
+    integrator = AlphaRattleIntegrator(0.002, "energy", composition="triple-jump")
     assert integrator.order == 4
     assert integrator.alpha_bounds == (-0.2, 0.2)
-    assert "order=4" in repr(integrator)
+    assert f"composition={integrator.composition.name!r}" in repr(integrator)
     assert AlphaRattleIntegrator(0.002).order == 2
+    assert AlphaRattleIntegrator(0.002).composition is None
     restored = mm.XmlSerializer.deserialize(mm.XmlSerializer.serialize(integrator))
     from openmm_alphaprk import restore_integrator
 
     assert restore_integrator(restored).order == 4
+    assert restored.composition.coefficients == integrator.composition.coefficients
+    assert restored.composition.alpha_stages == integrator.composition.alpha_stages

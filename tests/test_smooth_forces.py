@@ -88,7 +88,7 @@ def test_energy_mode_warns_at_check_context_pointing_at_the_users_call(water, or
 def test_energy_mode_without_check_context_cannot_see_the_system_and_says_nothing(water):
     """Without check_context the integrator cannot see its System: no warning, the noisiest tolerance."""
     forcefield, topology, positions = water
-    integrator = AlphaRattleIntegrator(0.001, alpha="energy", order=4)
+    integrator = AlphaRattleIntegrator(0.001, alpha="energy", composition="triple-jump")
     context = _context(_create(forcefield, topology), integrator, positions)
     with warnings.catch_warnings(record=True) as record:
         warnings.simplefilter("always")
@@ -108,7 +108,7 @@ def test_a_barostat_added_before_reinitialize_is_reported_at_the_next_step_at_th
     forcefield, topology, positions = water
     system = _create(forcefield, topology)
     make_smooth(system)
-    integrator = AlphaRattleIntegrator(0.001, alpha="energy", order=4)
+    integrator = AlphaRattleIntegrator(0.001, alpha="energy", composition="triple-jump")
     simulation = app.Simulation(topology, system, integrator, mm.Platform.getPlatformByName("CPU"))
     simulation.context.setPositions(positions)
     with warnings.catch_warnings(record=True) as record:
@@ -131,7 +131,7 @@ def test_no_warning_after_make_smooth(water):
     system = _create(forcefield, topology)
     assert len(make_smooth(system)) == 2  # switch on, Ewald tightened
     assert smoothness_problems(system) == []
-    integrator = AlphaRattleIntegrator(0.001, alpha="energy", order=4)
+    integrator = AlphaRattleIntegrator(0.001, alpha="energy", composition="triple-jump")
     context = _context(system, integrator, positions)
     with warnings.catch_warnings(record=True) as record:
         warnings.simplefilter("always")
@@ -145,7 +145,7 @@ def test_no_warning_after_make_smooth(water):
     "make",
     [
         lambda: AlphaRattleIntegrator(0.001, alpha=0.1),
-        lambda: AlphaRattleIntegrator(0.001, alpha=0.0, order=4),
+        lambda: AlphaRattleIntegrator(0.001, alpha=0.0, composition="triple-jump"),
         lambda: RattleIntegrator(0.001),
     ],
     ids=["alpha=0.1", "alpha4=0", "rattle"],
@@ -374,7 +374,7 @@ def test_prepare_for_nve_readies_a_default_create_system_and_the_energy_mode_doe
     assert smoothness_problems(system) == [] and state_changing_forces(system) == []
     nonbonded = next(f for f in system.getForces() if isinstance(f, mm.NonbondedForce))
     assert nonbonded.getEwaldErrorTolerance() == SMOOTH_EWALD_TOLERANCE
-    integrator = AlphaRattleIntegrator(0.001, alpha="energy", order=4)
+    integrator = AlphaRattleIntegrator(0.001, alpha="energy", composition="triple-jump")
     context = _context(system, integrator, positions)
     with warnings.catch_warnings(record=True) as record:
         warnings.simplefilter("always")
@@ -427,7 +427,7 @@ def cluster():
 
 def test_start_blow_up_on_cpu_names_the_causes_and_keeps_openmms_message(water):
     forcefield, topology, positions = water
-    integrator = AlphaRattleIntegrator(0.002, alpha=0.0, order=4)
+    integrator = AlphaRattleIntegrator(0.002, alpha=0.0, composition="triple-jump")
     context = _hot_start(make_smooth_system(forcefield, topology), positions, integrator, "CPU")
     with pytest.raises(StartBlowUpError) as caught:
         integrator.step(5)
@@ -471,7 +471,7 @@ def test_the_blow_up_scenarios_are_real_without_the_check(cluster, water, monkey
     velocities = context.getState(getVelocities=True).getVelocities(asNumpy=True)._value
     assert not np.isfinite(velocities).all()
     forcefield, topology, water_positions = water
-    integrator = AlphaRattleIntegrator(0.002, alpha=0.0, order=4)
+    integrator = AlphaRattleIntegrator(0.002, alpha=0.0, composition="triple-jump")
     context = _hot_start(make_smooth_system(forcefield, topology), water_positions, integrator, "CPU")
     with pytest.raises(mm.OpenMMException, match="NaN") as caught:
         integrator.step(5)
@@ -480,7 +480,7 @@ def test_the_blow_up_scenarios_are_real_without_the_check(cluster, water, monkey
 
 def test_after_100_steps_openmms_error_passes_unchanged(water, cluster):
     forcefield, topology, positions = water
-    integrator = AlphaRattleIntegrator(0.002, alpha=0.0, order=4)
+    integrator = AlphaRattleIntegrator(0.002, alpha=0.0, composition="triple-jump")
     context = _hot_start(make_smooth_system(forcefield, topology), positions, integrator, "CPU")
     integrator.setGlobalVariableByName("steps_taken", 100)
     with pytest.raises(mm.OpenMMException, match="Particle coordinate is NaN") as caught:

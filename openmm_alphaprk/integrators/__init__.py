@@ -24,7 +24,7 @@ Modules:
   :class:`AlphaRattleEnergyIntegrator` (the energy mode), their four programs side by
   side and the energy controller's pieces;
 - :mod:`~.energy_settings`: the energy mode's settings and defaults;
-  :mod:`~.triple_jump`: α-RATTLE-4's sub-step weights; :mod:`~.variables`: the names
+  :mod:`~.compositions`: the named compositions (their stage coefficients); :mod:`~.variables`: the names
   of the globals read from outside a program; :mod:`~.restore`:
   :func:`restore_integrator`.
 """

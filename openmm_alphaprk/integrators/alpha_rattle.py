@@ -81,15 +81,17 @@ from .energy_settings import (
     PREDICTOR_FORGETTING,
     PREDICTOR_WARMUP,
     ControllerSettings,
+    alpha_scale_of,
     check_alpha_bounds,
     controller_settings,
 )
+from .compositions import COMPOSITIONS, DEFAULT_COMPOSITIONS, Composition, composition
 from .pieces import (
     ACCEPTED_MIDPOINT_CHANGE,
     DEFAULT_CONSTRAINT_TOLERANCE,
-    MIDDLE_H,
     MidpointConvergenceError,
     _StepProgram,
+    _substep_h,
     first_forces,
     last_forces,
 )
@@ -245,9 +247,18 @@ class AlphaRattleIntegrator(_StepProgram):
         max_alpha_change: float | None = None,
         alpha_probe: float | None = None,
         slope_damping: float = DEFAULT_SLOPE_DAMPING,
-        order: int = 2,
+        order: int | None = None,
+        composition: str | Composition | None = None,
+        alpha_stages: str | tuple[int, ...] | None = None,
     ) -> None:
-        _check_order(order)
+        order, chosen = _order_and_composition(order, composition, alpha_stages)
+        if chosen is not None and _is_energy_mode(alpha) and len(chosen.alpha_stages) != 1:
+            raise InputError(
+                f"the energy mode takes alpha on one stage of a composition, got stages {chosen.alpha_stages} "
+                f"of {chosen.name!r}; use alpha_stages='middle' or one stage number, or a fixed alpha."
+            )
+        self._composition = chosen
+        controls = 2 if chosen is None else 4  # the controller's defaults: one step, or a composition
         if _is_energy_mode(alpha) != self.energy_mode:
             raise InputError(
                 f"{type(self).__name__} was given alpha={alpha!r}; create integrators with "
@@ -255,7 +266,7 @@ class AlphaRattleIntegrator(_StepProgram):
             )
         if self.energy_mode:
             settings = controller_settings(
-                order,
+                controls,
                 alpha_bounds,
                 energy_tolerance,
                 max_trials,
@@ -263,10 +274,11 @@ class AlphaRattleIntegrator(_StepProgram):
                 alpha_probe,
                 slope_damping,
                 automatic_midpoint_tolerance=midpoint_tolerance is None,
+                alpha_scale=1.0 if chosen is None else alpha_scale_of(chosen),
             )
             low, high = settings.alpha_bounds
             start_alpha = min(max(0.0, low), high)
-            default_tolerance = CONTROLLER_DEFAULTS[order].midpoint_tolerance
+            default_tolerance = CONTROLLER_DEFAULTS[controls].midpoint_tolerance
         else:
             _refuse_energy_options(
                 alpha,
@@ -288,8 +300,8 @@ class AlphaRattleIntegrator(_StepProgram):
         )
         max_iterations = positive_int(max_midpoint_iterations, "max_midpoint_iterations")
         super().__init__(timestep, constraint_tolerance)
-        self._add_midpoint_variables(start_alpha, tolerance, max_iterations, order)
-        self._add_program(order, settings)
+        self._add_midpoint_variables(start_alpha, tolerance, max_iterations, order, chosen)
+        self._add_program(settings)
 
     def __new__(cls, *args: object, **kwargs: object) -> AlphaRattleIntegrator:
         """``alpha="energy"`` makes an :class:`AlphaRattleEnergyIntegrator`."""
@@ -298,9 +310,9 @@ class AlphaRattleIntegrator(_StepProgram):
             cls = AlphaRattleEnergyIntegrator
         return super().__new__(cls)
 
-    def _add_program(self, order: int, settings: ControllerSettings | None) -> None:
-        """Add the fixed-α program of ``order``, starting with the update-context-state step."""
-        build = self._build_program if order == 2 else self._build_order4_program
+    def _add_program(self, settings: ControllerSettings | None) -> None:
+        """Add the fixed-α program, starting with the update-context-state step."""
+        build = self._build_program if self._composition is None else self._build_composition_program
         self._add_step(build, update_context_state=True)
 
     # ---------------------------------------------------------------- programs
@@ -333,18 +345,20 @@ class AlphaRattleIntegrator(_StepProgram):
         self.endBlock()
         self._add_midpoint_end_step()
 
-    def _build_order4_program(self) -> None:
-        """α-RATTLE-4 with fixed α: RATTLE (γ1 h), then a loop over α-RATTLE (γ2 h) and RATTLE (γ1 h).
+    def _build_composition_program(self) -> None:
+        """A composition with fixed α: its RATTLE stages before the first α stage, then a loop over the rest.
 
-        The last sub-step is inside the loop, before its midpoint block, so that its
-        position constraint precedes the midpoint assignment in program text. A
-        failed midpoint iteration makes both remaining sub-steps return the state
-        the step started from.
+        For the triple jump: RATTLE (γ1 h), then the loop over α-RATTLE (γ2 h) and
+        RATTLE (γ1 h). Every stage after the first α stage is inside the loop, before
+        its midpoint block, so that its position constraint precedes the midpoint
+        assignment in program text. A failed midpoint iteration makes every remaining
+        sub-step return the state the step started from.
         """
+        composition = self._composition
         self._add_save_step_start(xstep="x", vstep="v", fstart="f")
-        self._add_first_outer_substep()
-        self._add_inner_substeps_start("1 - delta(alpha)", fmid="f")
-        self._add_order4_loop(self._add_midpoint_force)
+        self._add_leading_substeps(composition)
+        self._add_alpha_substeps_start(composition, "1 - delta(alpha)", fmid="f")
+        self._add_composition_loop(composition, self._add_midpoint_force)
         self._add_midpoint_end_step()
 
     def step(self, steps: int) -> None:
@@ -441,13 +455,33 @@ class AlphaRattleIntegrator(_StepProgram):
 
     @property
     def order(self) -> int:
-        """2 (α-RATTLE) or 4 (α-RATTLE-4)."""
+        """2 (the α-RATTLE step), or the order of the composition at α = 0 (4, 6)."""
         return int(self.getGlobalVariableByName("order"))
+
+    @property
+    def composition(self) -> Composition | None:
+        """The composition the step is made of, α's stages marked (None: one α-RATTLE step)."""
+        if "_composition" in vars(self):
+            return self._composition
+        names = [self.getGlobalVariableName(i) for i in range(self.getNumGlobalVariables())]
+        stages = sum(name.startswith("stage_coefficient_") for name in names)
+        if not stages:
+            return None
+        coefficients = tuple(self.getGlobalVariableByName(f"stage_coefficient_{i}") for i in range(1, stages + 1))
+        on = tuple(i for i in range(1, stages + 1) if self.getGlobalVariableByName(f"alpha_on_stage_{i}"))
+        known = [c for c in COMPOSITIONS.values() if c.coefficients == coefficients]
+        name = known[0].name if known else "restored"
+        return Composition(name, coefficients, self.order, "restored from the program", on)
 
     def __repr__(self) -> str:
         alpha = "'energy'" if self.energy_mode else self.alpha
-        order = f", order={self.order}" if self.order != 2 else ""
-        return f"{type(self).__name__}(timestep={self.timestep}, alpha={alpha}{order})"
+        chosen = self.composition
+        extra = ""
+        if chosen is not None:
+            extra = f", composition={chosen.name!r}"
+            if chosen.alpha_stages != chosen.with_alpha_on("middle").alpha_stages:
+                extra += f", alpha_stages={chosen.alpha_stages}"
+        return f"{type(self).__name__}(timestep={self.timestep}, alpha={alpha}{extra})"
 
     def __getattr__(self, name: str) -> object:
         if name in _ENERGY_MODE_ONLY:
@@ -472,13 +506,14 @@ class AlphaRattleEnergyIntegrator(_ReferenceEnergy, AlphaRattleIntegrator):
 
     energy_mode: ClassVar[bool] = True
 
-    def _add_program(self, order: int, settings: ControllerSettings | None) -> None:
-        """Add the controller's variables and the energy-mode program of ``order`` (NVE: no update step)."""
-        self._add_energy_mode_variables(settings, order)
-        build = self._build_energy_program if order == 2 else self._build_order4_energy_program
+    def _add_program(self, settings: ControllerSettings | None) -> None:
+        """Add the controller's variables and the energy-mode program (NVE: no update step)."""
+        composed = self._composition is not None
+        self._add_energy_mode_variables(settings, composed)
+        build = self._build_energy_program if not composed else self._build_composition_energy_program
         self._add_step(build, update_context_state=False)
 
-    def _add_energy_mode_variables(self, settings: ControllerSettings, order: int) -> None:
+    def _add_energy_mode_variables(self, settings: ControllerSettings, composed: bool) -> None:
         """Declare the controller's settings and state (after :meth:`_add_midpoint_variables`)."""
         low, high = settings.alpha_bounds
         self._add_reference_energy_variables(settings.energy_tolerance)
@@ -530,7 +565,7 @@ class AlphaRattleEnergyIntegrator(_ReferenceEnergy, AlphaRattleIntegrator):
             *_PREDICTOR_STATE,
         ):
             self.addGlobalVariable(name, 0)
-        if order == 4:
+        if composed:
             best_trial = ("trial_better", "best_set", "residual_best", "alpha_best", "restored_best")
             short_trial = (
                 "virtual_trial",
@@ -560,7 +595,7 @@ class AlphaRattleEnergyIntegrator(_ReferenceEnergy, AlphaRattleIntegrator):
         # 0: the user chose it
         self.addGlobalVariable("midpoint_tolerance_automatic", float(settings.automatic_midpoint_tolerance))
         for name in ("fmid_last",) + (
-            ("xa", "va", "fa", "fstart_last", "xbest", "vbest") if order == 4 else ()
+            ("xa", "va", "fa", "fstart_last", "xbest", "vbest") if composed else ()
         ):
             self.addPerDofVariable(name, 0)
 
@@ -588,11 +623,12 @@ class AlphaRattleEnergyIntegrator(_ReferenceEnergy, AlphaRattleIntegrator):
         self._add_controller_bookkeeping()
         self._add_midpoint_end_step()
 
-    def _build_order4_energy_program(self) -> None:
-        """α-RATTLE-4: the first RATTLE sub-step once, then a loop over trials of the other two.
+    def _build_composition_energy_program(self) -> None:
+        """A composition: the RATTLE stages before the α stage once, then a loop over trials of the rest.
 
-        The step's first trial takes the middle α-RATTLE sub-step (γ2 h) and the last
-        RATTLE sub-step: three force evaluations (midpoint, middle end, last end).
+        The step's first trial takes the α stage (for the triple jump the middle
+        sub-step, γ2 h) and the RATTLE stages after it (the last sub-step): for the
+        triple jump three force evaluations (midpoint, middle end, last end).
         After the predictor's warm-up a later trial is *short*: it redoes the middle
         sub-step only, keeping the last midpoint force where that is within
         ``midpoint_tolerance`` (one evaluation), and predicts the rest
@@ -608,10 +644,12 @@ class AlphaRattleEnergyIntegrator(_ReferenceEnergy, AlphaRattleIntegrator):
         # placed before every position assignment in program text, it leaves the common
         # platform's delta storage of positions as it was (§5a)
         self.addConstrainPositions()
-        self._add_first_outer_substep()
+        composition = self._composition
+        self._add_leading_substeps(composition)
         self._add_controller_start()
         # the midpoint force's offset from the sub-step's start force changes little between steps
-        self._add_inner_substeps_start(
+        self._add_alpha_substeps_start(
+            composition,
             "1",
             xa="x",
             va="v",
@@ -622,7 +660,8 @@ class AlphaRattleEnergyIntegrator(_ReferenceEnergy, AlphaRattleIntegrator):
         self.addComputeGlobal("virtual_trial", "0")
         self.addComputeGlobal("completing", "0")
         self.addComputeGlobal("trial_ready", "0")
-        self._add_order4_loop(
+        self._add_composition_loop(
+            composition,
             self._add_order4_trial_midpoint_force,
             trial_end=self._add_order4_trial_end,
             substep_end=self._add_substep_energy,
@@ -646,10 +685,13 @@ class AlphaRattleEnergyIntegrator(_ReferenceEnergy, AlphaRattleIntegrator):
         """
         self._add_sum("kinetic_energy", "0.5*m*v*v")
         self.addComputeGlobal("substep_energy", "energy + kinetic_energy")
+        after_alpha, ended = self._composition.first_alpha_stage + 1, self._composition.stages
         self.addComputeGlobal(
-            "middle_end_energy", "select(delta(phase - 3), substep_energy, middle_end_energy)"
+            "middle_end_energy", f"select(delta(phase - {after_alpha}), substep_energy, middle_end_energy)"
         )
-        self.addComputeGlobal("trial_ready", "max(step(phase - 3.5), delta(phase - 3)*virtual_trial)")
+        self.addComputeGlobal(
+            "trial_ready", f"max(step(phase - {ended}.5), delta(phase - {after_alpha})*virtual_trial)"
+        )
 
     def _add_last_substep_fit(self) -> None:
         """Fit c = d(ΔE_last)/dα, how the last sub-step's energy change follows α.
@@ -690,7 +732,7 @@ class AlphaRattleEnergyIntegrator(_ReferenceEnergy, AlphaRattleIntegrator):
         stale force changes x1 by less than 2 |α| |Δα| dx1/dα, added to the change
         the last midpoint force made (``midpoint_change``).
         """
-        self.addComputeGlobal("full_trial", "step(phase - 3.5)")
+        self.addComputeGlobal("full_trial", f"step(phase - {self._composition.stages}.5)")
         self._add_last_substep_fit()
         self.addComputeGlobal(
             "last_substep_change",
@@ -727,8 +769,9 @@ class AlphaRattleEnergyIntegrator(_ReferenceEnergy, AlphaRattleIntegrator):
         self.addComputeGlobal("midpoints_reused", "midpoints_reused + reuse_midpoint")
         self.addComputeGlobal("virtual_trial", "restarting*short_trials*use_prediction*(1 - midpoint_failed)")
         self.addComputeGlobal("trial_ready", "0")
-        self.addComputeGlobal("phase", "select(restarting, 2, phase)")
-        self.addComputeGlobal("hsub", f"select(restarting, {MIDDLE_H}, hsub)")
+        first = self._composition.first_alpha_stage
+        self.addComputeGlobal("phase", f"select(restarting, {first}, phase)")
+        self.addComputeGlobal("hsub", f"select(restarting, {_substep_h(self._composition, first)}, hsub)")
         self.addComputeGlobal("alpha_sub", "alpha*restarting")
 
     def _add_best_trial_record(self) -> None:
@@ -941,7 +984,7 @@ class AlphaRattleEnergyIntegrator(_ReferenceEnergy, AlphaRattleIntegrator):
         step's α*, so a step that carried α far passes it on to the next; a fourth trial
         let it reach a bound (docs/energy_mode.md, "Short trials").
         """
-        if self.order == 4:
+        if self.order != 2:
             return "select(use_prediction, max_trials, min(max_trials, 3))"
         return "max_trials"
 
@@ -1104,10 +1147,10 @@ class AlphaRattleEnergyIntegrator(_ReferenceEnergy, AlphaRattleIntegrator):
             name: int(self.getGlobalVariableByName(name))
             for name in ("steps_within_tolerance", "steps_fallen_back", "steps_at_bound", "reference_resets")
         }
-        restored = self.getGlobalVariableByName("steps_restored") if self.order == 4 else 0
+        restored = self.getGlobalVariableByName("steps_restored") if self.order != 2 else 0
         totals["steps_restored"] = int(restored)
         for name in ("short_trials_completed", "midpoints_reused"):
-            totals[name] = int(self.getGlobalVariableByName(name)) if self.order == 4 else 0
+            totals[name] = int(self.getGlobalVariableByName(name)) if self.order != 2 else 0
         completed = totals["short_trials_completed"]
         short_error = (
             (self.getGlobalVariableByName("sum_short_error_squared") / completed) ** 0.5
@@ -1133,11 +1176,27 @@ class AlphaRattleEnergyIntegrator(_ReferenceEnergy, AlphaRattleIntegrator):
         self._set_system_defaults(context.getSystem().usesPeriodicBoundaryConditions())
 
 
-def _check_order(order: object) -> None:
-    if isinstance(order, bool) or order not in (2, 4):
+def _order_and_composition(
+    order: object, name: str | Composition | None, alpha_stages: str | tuple[int, ...] | None
+) -> tuple[int, Composition | None]:
+    """The order and the composition (None: the single α-RATTLE step) that the options ask for."""
+    if order is not None and (isinstance(order, bool) or order not in (2, 4, 6)):
         raise InputError(
-            f"order must be 2 (α-RATTLE) or 4 (α-RATTLE-4, the triple-jump composition), got {order!r}."
+            f"order must be 2 (the α-RATTLE step), 4 or 6 (a composition of α-RATTLE steps), got {order!r}."
         )
+    if name is None and order in (None, 2):
+        if alpha_stages is not None:
+            raise InputError("alpha_stages applies to a composition; give order=4 or 6, or a composition.")
+        return 2, None
+    chosen = composition(DEFAULT_COMPOSITIONS[order] if name is None else name)
+    if order is not None and order != chosen.order:
+        raise InputError(
+            f"composition {chosen.name!r} is of order {chosen.order}, but order={order} was given; "
+            "leave order out or give a composition of that order."
+        )
+    if alpha_stages is not None:
+        chosen = chosen.with_alpha_on(alpha_stages)
+    return chosen.order, chosen
 
 
 def _is_energy_mode(alpha: float | str) -> bool:

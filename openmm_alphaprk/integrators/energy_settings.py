@@ -12,6 +12,7 @@ import openmm.unit as unit
 
 from .._units import InputError, InputTypeError, to_dimensionless, to_float
 from ..observables import positive_int
+from .compositions import TRIPLE_JUMP, Composition
 
 DEFAULT_SLOPE_DAMPING = 0.5
 #: Default midpoint tolerance (nm) of the energy mode without a periodic box, where angular
@@ -96,12 +97,19 @@ def controller_settings(
     alpha_probe: float | None,
     slope_damping: float,
     automatic_midpoint_tolerance: bool = True,
+    alpha_scale: float = 1.0,
 ) -> ControllerSettings:
-    """Validate the energy mode's keyword options; None takes the default for ``order``."""
+    """Validate the energy mode's keyword options; None takes the default for ``order``.
+
+    ``alpha_scale`` multiplies the default α interval, move limit and probe (not a
+    value the user gave): a composition whose α stage is shorter than the triple
+    jump's gives α less authority, by the cube of the stage's length
+    (:func:`alpha_scale_of`).
+    """
     defaults = CONTROLLER_DEFAULTS[order]
-    alpha_bounds = defaults.alpha_bounds if alpha_bounds is None else alpha_bounds
-    max_alpha_change = defaults.max_alpha_change if max_alpha_change is None else max_alpha_change
-    alpha_probe = defaults.alpha_probe if alpha_probe is None else alpha_probe
+    alpha_bounds = tuple(alpha_scale * b for b in defaults.alpha_bounds) if alpha_bounds is None else alpha_bounds
+    max_alpha_change = alpha_scale * defaults.max_alpha_change if max_alpha_change is None else max_alpha_change
+    alpha_probe = alpha_scale * defaults.alpha_probe if alpha_probe is None else alpha_probe
     max_trials = defaults.max_trials if max_trials is None else max_trials
     settings = ControllerSettings(
         check_alpha_bounds(alpha_bounds),
@@ -126,6 +134,17 @@ def controller_settings(
             f"Use max_trials >= 2 (default {defaults.max_trials} at order {order})."
         )
     return settings
+
+
+def alpha_scale_of(composition: Composition) -> float:
+    """How much larger α must be on ``composition``'s α stage than on the triple jump's for the same effect.
+
+    α changes a sub-step of c h by O(α (c h)³) (its effect on the energy as well), so
+    the order-4 defaults, set on the triple jump's middle stage (c = −1.702), scale by
+    (1.702/|c_α|)³: 17.3 for Suzuki's middle stage (c = −0.658).
+    """
+    longest_alpha_stage = max(abs(composition.coefficients[k - 1]) for k in composition.alpha_stages)
+    return (abs(TRIPLE_JUMP.coefficients[1]) / longest_alpha_stage) ** 3
 
 
 def check_alpha_bounds(bounds: object) -> tuple[float, float]:

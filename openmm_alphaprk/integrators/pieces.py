@@ -58,8 +58,9 @@ the same step:
 The midpoint iteration: the position solve and the midpoint block
 (:meth:`_StepProgram._add_midpoint_force`) alternate in a ``while`` loop, in the order
 that rules 1–3 require. α-RATTLE-4 takes the sub-steps Ψ^0_{γ1 h} ∘ Ψ^α_{γ2 h} ∘
-Ψ^0_{γ1 h} (:mod:`~.triple_jump`), the last two in one loop
-(:meth:`_StepProgram._add_order4_loop`).
+Ψ^0_{γ1 h} and, in general, a symmetric composition of such sub-steps
+(:mod:`~.compositions`): the stages before the first one with α once, the rest in one
+loop (:meth:`_StepProgram._add_composition_loop`).
 """
 
 from __future__ import annotations
@@ -76,7 +77,7 @@ import openmm.unit as unit
 
 from .. import platforms, start_blowup
 from .._units import InputError, to_dimensionless, to_float
-from .triple_jump import GAMMA1, GAMMA2
+from .compositions import Composition
 from .variables import (
     ALPHA,
     CHECK_SYSTEM,
@@ -95,9 +96,6 @@ from .variables import (
 DEFAULT_CONSTRAINT_TOLERANCE = 1e-8
 _NO_CHECK, _CHECK_REFUSING_MASSLESS, _CHECK_ALLOWING_MASSLESS = 0, 1, 2
 
-#: Sub-step sizes of α-RATTLE-4: Ψ^0_{γ1 h} ∘ Ψ^α_{γ2 h} ∘ Ψ^0_{γ1 h}.
-OUTER_H = f"({GAMMA1!r}*dt)"
-MIDDLE_H = f"({GAMMA2!r}*dt)"
 #: The largest midpoint change (nm, RMS per DOF) a step is accepted with once the
 #: iteration stopped: 1000 × the tolerance, and never below 1e-8 nm nor above 1e-3 nm.
 ACCEPTED_MIDPOINT_CHANGE = "accepted = min(max(1000*midpoint_tolerance, 1e-8), 1e-3)"
@@ -111,6 +109,31 @@ def first_forces(alpha: str) -> str:
 def last_forces(alpha: str) -> str:
     """Force term of the velocity update: α F(x_m) + (½−α) F(x1)."""
     return f"{alpha}*fmid + (0.5-{alpha})*f"
+
+
+def _substep_h(composition: Composition, stage: int) -> str:
+    """Expression of stage ``stage``'s step size, c_stage·h."""
+    return f"({composition.coefficients[stage - 1]!r}*dt)"
+
+
+def _stage_select(composition: Composition, first: int, what: str) -> str:
+    """Expression of the step size (``what="h"``) or α (``"alpha"``) of stage ``phase``, for phases ≥ ``first``.
+
+    Written for the stages that can follow: one term where they all agree (the
+    triple jump's last stage), else a sum of ``delta(phase - k)`` terms.
+    """
+    stages = range(first, composition.stages + 1)
+    if what == "h":
+        values = {k: composition.coefficients[k - 1] for k in stages}
+        if len(set(values.values())) == 1:
+            return f"({next(iter(values.values()))!r}*dt)"
+        return "(" + " + ".join(f"{c!r}*delta(phase - {k})" for k, c in values.items()) + ")*dt"
+    on = [k for k in stages if k in composition.alpha_stages]
+    if not on:
+        return "0"
+    if len(on) == len(stages):
+        return "alpha"
+    return "alpha*(" + " + ".join(f"delta(phase - {k})" for k in on) + ")"
 
 
 class IncompatibleSystemError(InputError):
@@ -286,9 +309,15 @@ class _StepProgram(mm.CustomIntegrator):
         self.addComputeGlobal("steps_taken", "steps_taken + 1")
 
     def _add_midpoint_variables(
-        self, alpha: float, tolerance: float, max_iterations: int, order: int
+        self, alpha: float, tolerance: float, max_iterations: int, order: int, composition: Composition | None
     ) -> None:
-        """Declare α, the midpoint iteration's state and settings, and (order 4) the sub-step state."""
+        """Declare α, the midpoint iteration's state and settings, and (a composition) the sub-step state.
+
+        A composition's coefficients and α's stages are kept as globals
+        ``stage_coefficient_<i>`` and ``alpha_on_stage_<i>`` (read back by
+        :attr:`~.alpha_rattle.AlphaRattleIntegrator.composition`; the program itself
+        has them written into its expressions).
+        """
         self.addGlobalVariable(ALPHA, alpha)
         self.addGlobalVariable("midpoint_tolerance", tolerance)
         self.addGlobalVariable("max_midpoint_iterations", max_iterations)
@@ -306,11 +335,16 @@ class _StepProgram(mm.CustomIntegrator):
         self.addGlobalVariable("order", order)
         for name in ("fstart", "fmid", "x1"):
             self.addPerDofVariable(name, 0)
-        if order == 4:
+        if composition is not None:
             for name in ("phase", "hsub", "alpha_sub", "substep_done"):
                 self.addGlobalVariable(name, 0)
+            if len(composition.alpha_stages) > 1:
+                self.addGlobalVariable("next_stage_midpoint", 0)
             for name in ("xstep", "vstep"):
                 self.addPerDofVariable(name, 0)
+            for i, c in enumerate(composition.coefficients, start=1):
+                self.addGlobalVariable(f"stage_coefficient_{i}", c)
+                self.addGlobalVariable(f"alpha_on_stage_{i}", float(i in composition.alpha_stages))
 
     # ------------------------------------------------------ α-RATTLE's midpoint
     def _add_midpoint_setup(self, need_midpoint: str) -> None:
@@ -373,16 +407,28 @@ class _StepProgram(mm.CustomIntegrator):
         self.addComputeGlobal("midpoint_failures", "midpoint_failures + midpoint_failed")
         self._add_end_step()
 
-    # ------------------------------------------- α-RATTLE-4's inner sub-steps
-    def _add_first_outer_substep(self) -> None:
-        """Take the first RATTLE sub-step (γ1 h) from the step's start, F(x0) saved as ``fstart``."""
-        self._add_position_solve("0.5*fstart", OUTER_H)
-        self._add_velocity_update("0.5*f", OUTER_H)
+    # ------------------------------------------------ a composition's sub-steps
+    def _add_leading_substeps(self, composition: Composition) -> None:
+        """Take the RATTLE stages before the first stage with α, from the step's start (F(x0) in ``fstart``).
 
-    def _add_inner_substeps_start(self, need_midpoint: str, **copies: str) -> None:
-        """Start the middle sub-step (γ2 h, α) here; the loop then takes the last one (γ1 h, 0)."""
-        self.addComputeGlobal("phase", "2")
-        self.addComputeGlobal("hsub", MIDDLE_H)
+        Straight-line code, taken once per step: each stage's position solve is
+        followed by its constraint step, so the force read after it sees the solved
+        positions on every platform (rule 1), and each projects along the positions of
+        the stage's start, left by the previous constraint step (rule 2).
+        """
+        for i in range(1, composition.first_alpha_stage):
+            h = _substep_h(composition, i)
+            if i > 1:
+                self.addComputePerDof("x0", "x")
+                self.addComputePerDof("v0", "v")
+            self._add_position_solve("0.5*fstart" if i == 1 else "0.5*f", h)
+            self._add_velocity_update("0.5*f", h)
+
+    def _add_alpha_substeps_start(self, composition: Composition, need_midpoint: str, **copies: str) -> None:
+        """Start the first stage with α here; the loop then takes it and every stage after it."""
+        first = composition.first_alpha_stage
+        self.addComputeGlobal("phase", str(first))
+        self.addComputeGlobal("hsub", _substep_h(composition, first))
         self.addComputeGlobal("alpha_sub", "alpha")
         self._add_midpoint_setup(need_midpoint)
         self.addComputePerDof("x0", "x")
@@ -392,31 +438,42 @@ class _StepProgram(mm.CustomIntegrator):
             self.addComputePerDof(variable, expression)
 
     def _add_substep_solve(self, fallback: str) -> None:
-        """Solve the positions of the current inner sub-step (a predictor or a midpoint re-solve)."""
+        """Solve the positions of the current sub-step (a predictor or a midpoint re-solve)."""
         self._add_position_solve(first_forces("alpha_sub"), "hsub", fallback)
         self.addComputeGlobal("substep_done", "1 - need_midpoint")
 
-    def _add_substep_end(self, fallback: str, **copies: str) -> None:
-        """Body of ``if substep_done``: the velocity update, then start the next sub-step."""
+    def _add_substep_end(self, composition: Composition, fallback: str, **copies: str) -> None:
+        """Body of ``if substep_done``: the velocity update, then start the next sub-step.
+
+        A next stage with α starts its midpoint iteration from F at its start, after
+        its predictor solve (``next_stage_midpoint``, taken at the loop's top); the
+        iteration count and the failure flag run on over the step's stages.
+        """
         self._add_velocity_update(last_forces("alpha_sub"), "hsub", fallback)
         for variable, expression in copies.items():
             self.addComputePerDof(variable, expression)
         self.addComputePerDof("x0", "x")
         self.addComputePerDof("v0", "v")
         self.addComputePerDof("fstart", "f")
+        later_alpha = [k for k in composition.alpha_stages if k > composition.first_alpha_stage]
+        if later_alpha:
+            self.addComputePerDof("fmid", "f")
         self.addComputeGlobal("phase", "phase + 1")
-        self.addComputeGlobal("hsub", OUTER_H)
-        self.addComputeGlobal("alpha_sub", "0")
+        self.addComputeGlobal("hsub", _stage_select(composition, composition.first_alpha_stage + 1, "h"))
+        self.addComputeGlobal("alpha_sub", _stage_select(composition, composition.first_alpha_stage + 1, "alpha"))
         self.addComputeGlobal("need_midpoint", "0")
+        if later_alpha:
+            self.addComputeGlobal("next_stage_midpoint", "1 - delta(alpha_sub)")
         self.addComputeGlobal("previous_midpoint_change", "1e30")
 
-    def _add_order4_loop(
+    def _add_composition_loop(
         self,
+        composition: Composition,
         midpoint_force: Callable[[str, str], None],
         trial_end: Callable[[], None] | None = None,
         substep_end: Callable[[], None] | None = None,
     ) -> None:
-        """Add the loop of α-RATTLE-4's last two sub-steps, after :meth:`_add_inner_substeps_start`.
+        """Add the loop over a composition's stages from the first with α, after :meth:`_add_alpha_substeps_start`.
 
         Each pass solves the current sub-step's positions; a finished sub-step takes its
         velocity update, runs ``substep_end`` (the energy mode: the energy there) and
@@ -427,13 +484,16 @@ class _StepProgram(mm.CustomIntegrator):
         the reference of the solve that follows on both semantics (rule 2), whichever
         block ran last.
         """
-        self.beginWhileBlock("phase < 3.5")
+        self.beginWhileBlock(f"phase < {composition.stages}.5")
+        if len(composition.alpha_stages) > 1:
+            self.addComputeGlobal("need_midpoint", "max(need_midpoint, next_stage_midpoint)")
+            self.addComputeGlobal("next_stage_midpoint", "0")
         if trial_end is not None:
             self.addComputePerDof("x", "x0")
             self.addConstrainPositions()
         self._add_substep_solve(fallback="xstep")
         self.beginIfBlock("substep_done > 0.5")
-        self._add_substep_end(fallback="vstep")
+        self._add_substep_end(composition, fallback="vstep")
         if substep_end is not None:
             substep_end()
         self.endBlock()

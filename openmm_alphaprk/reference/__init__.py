@@ -9,6 +9,7 @@ from .composition import (
     GAMMA1,
     GAMMA2,
     alpha_rattle4_step,
+    composition_step,
     energy_preserving_step,
     integrate_energy_preserving,
 )
@@ -41,6 +42,7 @@ __all__ = [
     "GAMMA2",
     "ConstrainedProblem",
     "alpha_rattle4_step",
+    "composition_step",
     "energy_preserving_step",
     "integrate_energy_preserving",
     "StepInfo",

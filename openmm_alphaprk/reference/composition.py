@@ -1,8 +1,10 @@
-"""α-RATTLE-4 (triple-jump composition) and energy-preserving steps in NumPy.
+"""Compositions of α-RATTLE steps and energy-preserving steps in NumPy.
 
-Φ_h^α = Ψ^0_{γ1 h} ∘ Ψ^α_{γ2 h} ∘ Ψ^0_{γ1 h}: order 4 at α = 0,
-order 2 at a fixed α ≠ 0; with α* chosen per step to hold the energy the order is 4
-again and α* = O(h²).
+Φ_h^α = Ψ_{c_s h} ∘ … ∘ Ψ_{c_1 h} with the composition's coefficients
+(:mod:`openmm_alphaprk.integrators.compositions`), α on the stages it marks and RATTLE
+(α = 0) on the others: of the composition's order at α = 0, order 2 at a fixed α ≠ 0;
+with α* chosen per step to hold the energy the composition's order again. α-RATTLE-4 is
+the triple jump, Ψ^0_{γ1 h} ∘ Ψ^α_{γ2 h} ∘ Ψ^0_{γ1 h}.
 """
 
 from __future__ import annotations
@@ -12,10 +14,39 @@ from collections.abc import Callable
 import numpy as np
 from scipy.optimize import brentq
 
-from ..integrators.triple_jump import GAMMA1, GAMMA2
+from ..integrators.compositions import TRIPLE_JUMP, Composition
+from ..integrators.compositions import composition as named_composition
 from .step import Array, ConstrainedProblem, alpha_rattle_step
 
 Step = Callable[..., tuple[Array, Array, Array]]
+
+GAMMA1, GAMMA2 = TRIPLE_JUMP.coefficients[:2]
+
+
+def composition_step(
+    problem: ConstrainedProblem,
+    x0: Array,
+    v0: Array,
+    h: float,
+    alpha: float,
+    *,
+    composition: str | Composition = TRIPLE_JUMP,
+    f0: Array | None = None,
+    **step_options,
+) -> tuple[Array, Array, Array]:
+    """One step of a composition: stage i an α-RATTLE step of c_i h, α on the marked stages.
+
+    Returns
+    -------
+    x1, v1, f1
+        The new state and the force at x1.
+    """
+    chosen = named_composition(composition)
+    x, v, f = x0, v0, f0
+    for i, c in enumerate(chosen.coefficients, start=1):
+        a = alpha if i in chosen.alpha_stages else 0.0
+        x, v, f = alpha_rattle_step(problem, x, v, c * h, a, f0=f, **step_options)
+    return x, v, f
 
 
 def alpha_rattle4_step(
@@ -28,16 +59,8 @@ def alpha_rattle4_step(
     f0: Array | None = None,
     **step_options,
 ) -> tuple[Array, Array, Array]:
-    """One α-RATTLE-4 step: RATTLE (γ1 h), α-RATTLE (γ2 h), RATTLE (γ1 h).
-
-    Returns
-    -------
-    x1, v1, f1
-        The new state and the force at x1.
-    """
-    x, v, f = alpha_rattle_step(problem, x0, v0, GAMMA1 * h, 0.0, f0=f0, **step_options)
-    x, v, f = alpha_rattle_step(problem, x, v, GAMMA2 * h, alpha, f0=f, **step_options)
-    return alpha_rattle_step(problem, x, v, GAMMA1 * h, 0.0, f0=f, **step_options)
+    """One α-RATTLE-4 step: RATTLE (γ1 h), α-RATTLE (γ2 h), RATTLE (γ1 h) — the triple jump."""
+    return composition_step(problem, x0, v0, h, alpha, composition=TRIPLE_JUMP, f0=f0, **step_options)
 
 
 def energy_preserving_step(

@@ -21,6 +21,12 @@ Names (:data:`VOCABULARY`, in the order ``--help`` lists them):
     three force evaluations per step).
 ``energy4``
     α-RATTLE-4 in the energy-preserving mode (α* = O(h²)).
+``alpha6=<number>``, ``energy6``
+    The same on the default sixth-order composition.
+``<name>:<composition>``
+    ``alpha4``, ``energy4``, ``alpha6`` or ``energy6`` on a named composition of
+    :data:`~openmm_alphaprk.integrators.compositions.COMPOSITIONS` instead of the
+    order's default (``energy4:triple-jump``, ``alpha4=0:suzuki5``).
 ``verlet``
     ``openmm.VerletIntegrator`` (leapfrog). Its ``State`` kinetic energy is a
     half-step average, so its H − E_ref is not comparable step for step with the
@@ -40,6 +46,7 @@ import openmm as mm
 import openmm.unit as unit
 
 from .._units import InputError
+from ..integrators.compositions import COMPOSITIONS
 from ..integrators import (
     AlphaRattleIntegrator,
     IncompatibleSystemError,
@@ -107,6 +114,13 @@ VOCABULARY = (
         "order=4 in the energy mode (the first sub-step once, then the middle and last sub-steps "
         "again for each trial of alpha)",
     ),
+    IntegratorName(
+        "alpha6=<number>",
+        "alpha",
+        6,
+        "the same on the default sixth-order composition (alpha6=0 is its RATTLE composition)",
+    ),
+    IntegratorName("energy6", "energy", 6, "the energy mode on the default sixth-order composition"),
     IntegratorName("verlet", "verlet", 2, VERLET_IS_LEAPFROG),
 )
 _BY_NAME = {entry.name.removesuffix("=<number>"): entry for entry in VOCABULARY}
@@ -129,6 +143,7 @@ class IntegratorSpec:
     alpha: float | None = None
     text: str = ""
     order: int = 2
+    composition: str | None = None
 
     @property
     def name(self) -> str:
@@ -167,20 +182,34 @@ def parse_integrator(text: str | IntegratorSpec) -> IntegratorSpec:
     if isinstance(text, IntegratorSpec):
         return text
     cleaned = re.sub(r"\s+", "", str(text)).lower()
-    prefix, equals, number = cleaned.partition("=")
+    named, colon, chosen = cleaned.partition(":")
+    prefix, equals, number = named.partition("=")
     entry = _BY_NAME.get(prefix)
+    if colon:
+        if entry is None or entry.order == 2:
+            raise UnknownIntegratorError(
+                f"{text!r}: only alpha4, energy4, alpha6 and energy6 take a composition (e.g. energy4:triple-jump)."
+            )
+        found = COMPOSITIONS.get(chosen)
+        if found is None or found.order != entry.order:
+            fitting = [c.name for c in COMPOSITIONS.values() if c.order == entry.order]
+            raise UnknownIntegratorError(
+                f"{text!r}: no composition {chosen!r} of order {entry.order}; use one of {', '.join(fitting)}."
+            )
+    composition_name = chosen if colon else None
     if entry is not None and not entry.takes_number and not equals:
-        return IntegratorSpec(entry.kind, text=cleaned, order=entry.order)
+        return IntegratorSpec(entry.kind, text=cleaned, order=entry.order, composition=composition_name)
     if entry is not None and entry.takes_number and re.fullmatch(r"[-+0-9.e/]+", number):
         try:
             value = float(Fraction(number))
         except (ValueError, ZeroDivisionError):
             value = None
         if value is not None and value == value and abs(value) != float("inf"):
-            return IntegratorSpec(entry.kind, value, text=cleaned, order=entry.order)
+            return IntegratorSpec(entry.kind, value, text=cleaned, order=entry.order, composition=composition_name)
     raise UnknownIntegratorError(
-        f"unknown integrator {text!r}; use one of: rattle, rattle+rescale, verlet, energy, energy4, "
-        "alpha=<number>, alpha4=<number> (e.g. alpha=0.5, alpha=1/6, alpha4=0)."
+        f"unknown integrator {text!r}; use one of: rattle, rattle+rescale, verlet, energy, energy4, energy6, "
+        "alpha=<number>, alpha4=<number>, alpha6=<number> (e.g. alpha=0.5, alpha=1/6, alpha4=0), "
+        "the composed ones optionally on a named composition (energy4:triple-jump)."
     )
 
 
@@ -202,10 +231,14 @@ def label(spec: str | IntegratorSpec) -> str:
     mode``, ``α-RATTLE-4 energy mode``); ``x`` is written as given (fractions kept).
     """
     spec = parse_integrator(spec)
+    family = "α-RATTLE" if spec.order == 2 else f"α-RATTLE-{spec.order}"
+    if spec.composition is not None:
+        family += f" ({spec.composition})"
+    if spec.kind == "energy":
+        return f"{family} energy mode"
     if spec.kind != "alpha":
         return _LABELS[spec.name]
-    family = "α-RATTLE-4" if spec.order == 4 else "α-RATTLE"
-    return f"{family} α = {spec.name.partition('=')[2]}"
+    return f"{family} α = {spec.name.partition(':')[0].partition('=')[2]}"
 
 
 def make_integrator(
@@ -226,11 +259,19 @@ def make_integrator(
         return RattleRescaleIntegrator(timestep, constraint_tolerance)
     if spec.kind == "alpha":
         return AlphaRattleIntegrator(
-            timestep, alpha=spec.alpha, constraint_tolerance=constraint_tolerance, order=spec.order
+            timestep,
+            alpha=spec.alpha,
+            constraint_tolerance=constraint_tolerance,
+            order=spec.order,
+            composition=spec.composition,
         )
     if spec.kind == "energy":
         return AlphaRattleIntegrator(
-            timestep, alpha="energy", constraint_tolerance=constraint_tolerance, order=spec.order
+            timestep,
+            alpha="energy",
+            constraint_tolerance=constraint_tolerance,
+            order=spec.order,
+            composition=spec.composition,
         )
     integrator = mm.VerletIntegrator(timestep)
     integrator.setConstraintTolerance(constraint_tolerance)

@@ -1,0 +1,188 @@
+"""Symmetric compositions of RATTLE steps: the higher-order members as data.
+
+A composition Φ_h = Ψ_{c_s h} ∘ … ∘ Ψ_{c_1 h} of a symmetric second-order step Ψ
+(RATTLE, α-RATTLE) with symmetric coefficients (c_i = c_{s+1−i}) and Σ c_i = 1 is of
+order 4 when Σ c_i³ = 0, and of higher order under further conditions
+(Hairer, Lubich & Wanner, *Geometric Numerical Integration*, 2nd ed., Section V.3).
+α goes on one stage or on several (:attr:`Composition.alpha_stages`); the other stages
+are RATTLE steps. Every stage takes one force evaluation (α ≠ 0 adds the midpoint
+forces of its stages).
+
+The named sets are :data:`COMPOSITIONS`; :func:`composition` looks one up. The OpenMM
+step programs (:mod:`~.pieces`, :mod:`~.alpha_rattle`) and the NumPy reference
+(:mod:`openmm_alphaprk.reference.composition`) both take their sub-steps from here.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+from .._units import InputError
+
+_CBRT2 = 2.0 ** (1.0 / 3.0)
+_SUZUKI_P = 1.0 / (4.0 - 4.0 ** (1.0 / 3.0))
+
+
+@dataclass(frozen=True)
+class Composition:
+    """A symmetric composition of a symmetric second-order step.
+
+    Attributes
+    ----------
+    name
+        The name it is looked up by (``composition=`` of the integrators, the
+        command line's ``composition:NAME``).
+    coefficients
+        c_1, …, c_s: stage i is a step of c_i h.
+    order
+        The order of the composition with α = 0 on every stage.
+    source
+        Where the coefficients come from.
+    alpha_stages
+        The stages (1-based) whose step carries α; the others are RATTLE steps.
+        Default: the middle stage.
+    """
+
+    name: str
+    coefficients: tuple[float, ...]
+    order: int
+    source: str
+    alpha_stages: tuple[int, ...] = field(default=())
+
+    def __post_init__(self) -> None:
+        c = self.coefficients
+        if len(c) < 1 or not all(math.isfinite(x) for x in c):
+            raise InputError(f"composition {self.name!r}: coefficients must be finite numbers, got {c!r}.")
+        if abs(sum(c) - 1.0) > 1e-12:
+            raise InputError(f"composition {self.name!r}: coefficients must sum to 1, they sum to {sum(c)!r}.")
+        if any(abs(a - b) > 1e-12 for a, b in zip(c, reversed(c))):
+            raise InputError(f"composition {self.name!r}: coefficients must be symmetric (c_i = c_(s+1-i)).")
+        stages = self.alpha_stages or ((len(c) + 1) // 2,)
+        if any(not 1 <= k <= len(c) for k in stages) or len(set(stages)) != len(stages):
+            raise InputError(
+                f"composition {self.name!r}: alpha stages must be distinct stage numbers 1..{len(c)}, "
+                f"got {self.alpha_stages!r}."
+            )
+        object.__setattr__(self, "alpha_stages", tuple(sorted(stages)))
+
+    @property
+    def stages(self) -> int:
+        """The number of stages s: force evaluations per step at α = 0."""
+        return len(self.coefficients)
+
+    @property
+    def first_alpha_stage(self) -> int:
+        """The first stage that carries α; the stages before it are taken once per step."""
+        return self.alpha_stages[0]
+
+    @property
+    def largest_substep(self) -> float:
+        """max |c_i|: the largest sub-step in units of h (what limits the stable step)."""
+        return max(abs(c) for c in self.coefficients)
+
+    def with_alpha_on(self, stages: str | tuple[int, ...]) -> Composition:
+        """The same composition with α on ``stages``: ``"middle"``, ``"all"`` or stage numbers."""
+        if stages == "middle":
+            chosen: tuple[int, ...] = ((self.stages + 1) // 2,)
+        elif stages == "all":
+            chosen = tuple(range(1, self.stages + 1))
+        elif isinstance(stages, str):
+            raise InputError(f"alpha stages must be 'middle', 'all' or stage numbers, got {stages!r}.")
+        else:
+            chosen = tuple(int(k) for k in stages)
+        return replace(self, alpha_stages=chosen)
+
+    def listing(self) -> str:
+        """One line: the name, the order and the coefficients, α's stages marked."""
+        parts = [f"{c:.6g}{'(α)' if i + 1 in self.alpha_stages else ''}" for i, c in enumerate(self.coefficients)]
+        return f"{self.name}: order {self.order}, {self.stages} stages ({', '.join(parts)})"
+
+
+def _mirror(first_half: tuple[float, ...]) -> tuple[float, ...]:
+    """(c_1, …, c_m), c_m the middle stage → the symmetric (c_1, …, c_m, …, c_1)."""
+    return first_half + first_half[-2::-1]
+
+
+TRIPLE_JUMP = Composition(
+    "triple-jump",
+    (1.0 / (2.0 - _CBRT2), -_CBRT2 / (2.0 - _CBRT2), 1.0 / (2.0 - _CBRT2)),
+    4,
+    "Yoshida, Phys. Lett. A 150 (1990) 262; Creutz & Gocksch, Phys. Rev. Lett. 63 (1989) 9",
+)
+SUZUKI5 = Composition(
+    "suzuki5",
+    (_SUZUKI_P, _SUZUKI_P, 1.0 - 4.0 * _SUZUKI_P, _SUZUKI_P, _SUZUKI_P),
+    4,
+    "Suzuki, Phys. Lett. A 146 (1990) 319: (p, p, 1 − 4p, p, p), p = 1/(4 − 4^(1/3))",
+)
+
+MCLACHLAN5 = Composition(
+    "mclachlan5",
+    _mirror((0.28, 0.62546642846767004501, -0.81093285693534009002)),
+    4,
+    "McLachlan, SIAM J. Sci. Comput. 16 (1995) 151, the 5-stage order-4 set, as quoted in Leimkuhler & "
+    "Reich, Simulating Hamiltonian Dynamics (2004), Table 6.2",
+)
+KAHAN_LI_S9ODR6A = Composition(
+    "kahan-li-s9odr6a",
+    _mirror(
+        (
+            0.39216144400731413927925056,
+            0.33259913678935943859974864,
+            -0.70624617255763935980996482,
+            0.08221359629355080023149045,
+            0.79854399093482996339895035,
+        )
+    ),
+    6,
+    "Kahan & Li, Math. Comp. 66 (1997) 1089, s9odr6a; Hairer, Lubich & Wanner, GNI, eq. V.3.12",
+)
+YOSHIDA7 = Composition(
+    "yoshida7",
+    _mirror(
+        (
+            0.78451361047755726381949763,
+            0.23557321335935813368479318,
+            -1.17767998417887100694641568,
+            1.31518632068391121888424973,
+        )
+    ),
+    6,
+    "Yoshida, Phys. Lett. A 150 (1990) 262, order 6, solution A; Hairer, Lubich & Wanner, GNI, eq. V.3.11",
+)
+MCLACHLAN9 = Composition(
+    "mclachlan9",
+    _mirror(
+        (
+            0.1867,
+            0.55549702371247839916,
+            0.12946694891347535806,
+            -0.84326562338773460855,
+            0.9432033015235617027,
+        )
+    ),
+    6,
+    "McLachlan, SIAM J. Sci. Comput. 16 (1995) 151, the 9-stage order-6 set",
+)
+
+#: The named compositions, by name.
+COMPOSITIONS: dict[str, Composition] = {
+    c.name: c for c in (TRIPLE_JUMP, SUZUKI5, MCLACHLAN5, YOSHIDA7, KAHAN_LI_S9ODR6A, MCLACHLAN9)
+}
+
+
+def composition(name: str | Composition) -> Composition:
+    """The named composition (a :class:`Composition` is returned as it is)."""
+    if isinstance(name, Composition):
+        return name
+    try:
+        return COMPOSITIONS[name]
+    except (KeyError, TypeError):
+        raise InputError(
+            f"unknown composition {name!r}; the named ones are {', '.join(COMPOSITIONS)}."
+        ) from None
+
+
+#: The composition ``order=4`` and ``order=6`` give.
+DEFAULT_COMPOSITIONS: dict[int, str] = {4: "suzuki5", 6: "mclachlan9"}
