@@ -86,12 +86,14 @@ def _message(integrator: mm.CustomIntegrator, original: str) -> str:
     """Return the likely causes of a blow-up at the start, for this integrator, then ``original``."""
     step_fs = integrator.getStepSize().value_in_unit(unit.femtoseconds)
     name = type(integrator).__name__
-    order4 = getattr(integrator, "order", 2) == 4
-    if order4:
+    composition = getattr(integrator, "composition", None)
+    if composition is not None and composition.largest_substep > 1.0:
+        largest = composition.largest_substep
         large = (
-            f"too large a step (this one is {step_fs:g} fs) for α-RATTLE-4: its sub-steps are 1.35h and "
-            "−1.70h, so its largest stable step is below RATTLE's; use at most 2 fs with constraints "
-            "(SETTLE, HBonds), or RattleIntegrator for larger steps"
+            f"too large a step (this one is {step_fs:g} fs) for the {composition.name} composition: its "
+            f"largest sub-step is {largest:.2f}h, so its largest stable step is {1 / largest:.2f}× RATTLE's; "
+            f"use at most {2 / largest:.1f} fs with constraints (SETTLE, HBonds), a composition with "
+            "shorter sub-steps (order=4, Suzuki's, whose sub-steps are at most 0.66h), or RattleIntegrator"
         )
     else:
         large = (

@@ -8,6 +8,7 @@ from conftest import REFERENCE, constraint_errors, positions_of, total_energy, v
 from platform_options import configured, platform_and_properties
 
 from openmm_alphaprk import (
+    AlphaRattleIntegrator,
     RattleIntegrator,
     RattleRescaleIntegrator,
     StateChangingForceWarning,
@@ -249,3 +250,40 @@ def test_one_force_and_energy_evaluation_per_step_on_every_platform(water_box, s
     # H as the platform computes it: at its energy's round-off (mixed/single: ~1e-3 kJ/mol here)
     e_ref = integrator.reference_energy.value_in_unit(unit.kilojoules_per_mole)
     assert abs(total_energy(context) - e_ref) < 0.01
+
+
+def test_a_composition_of_rattle_steps_then_rescaling_holds_energy_and_keeps_the_trajectory(spinning_cluster):
+    """order=4: Suzuki's five RATTLE stages, then the rescaling (Reference, 50 steps).
+
+    H held at E_ref, P and L kept, as for one RATTLE step; the positions are the
+    composition's (``AlphaRattleIntegrator(order=4)`` at α = 0) but for the velocity scale,
+    whose effect after 50 steps is far below the distance to RATTLE's positions.
+    """
+    system, x, v = spinning_cluster
+    integrator = RattleRescaleIntegrator(H, order=4)
+    assert integrator.composition.name == "suzuki5"
+    held, p, angular, context = _run(system, integrator, x, v, 50)
+    p0, l0 = _invariants(system, _context(system, mm.VerletIntegrator(H), x, v))
+    assert rms(held) < 1e-9
+    assert np.abs(p - p0).max() < 1e-9 * np.linalg.norm(p0)
+    assert np.abs(angular - l0).max() < 1e-9 * np.linalg.norm(l0)
+    assert integrator.last_step_force_evaluations == 5
+    composed = AlphaRattleIntegrator(H, 0.0, order=4)
+    composed_context = _context(system, composed, x, v)
+    composed.step(50)
+    rattle = RattleIntegrator(H)
+    rattle_context = _context(system, rattle, x, v)
+    rattle.step(50)
+    from_composition = np.abs(positions_of(context) - positions_of(composed_context)).max()
+    from_rattle = np.abs(positions_of(rattle_context) - positions_of(composed_context)).max()
+    assert from_composition < 0.05 * from_rattle, (from_composition, from_rattle)
+    restored = restore_integrator(mm.XmlSerializer.deserialize(mm.XmlSerializer.serialize(integrator)))
+    assert restored.composition.coefficients == integrator.composition.coefficients
+
+
+def test_a_composition_is_named_by_order_or_name():
+    assert RattleRescaleIntegrator(H).composition is None
+    assert RattleRescaleIntegrator(H, order=6).composition.name == "mclachlan9"
+    assert RattleRescaleIntegrator(H, composition="triple-jump").composition.stages == 3
+    with pytest.raises(ValueError, match="order 4"):
+        RattleRescaleIntegrator(H, order=6, composition="suzuki5")

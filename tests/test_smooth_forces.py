@@ -432,9 +432,9 @@ def test_start_blow_up_on_cpu_names_the_causes_and_keeps_openmms_message(water):
     with pytest.raises(StartBlowUpError) as caught:
         integrator.step(5)
     message = str(caught.value)
-    for words in ("first 100 steps", "LocalEnergyMinimizer", "minimizeEnergy", "too hot", "1.35h", "−1.70h"):
+    for words in ("first 100 steps", "LocalEnergyMinimizer", "minimizeEnergy", "too hot", "1.70h", "0.59× RATTLE's"):
         assert words in message
-    assert "RattleIntegrator" in message and "2 fs" in message
+    assert "RattleIntegrator" in message and "1.2 fs" in message and "Suzuki" in message
     assert message.endswith(str(caught.value.__cause__))  # OpenMM's own message, appended
     assert "Particle coordinate is NaN" in message
     assert isinstance(caught.value, mm.OpenMMException)
@@ -453,7 +453,7 @@ def test_start_blow_up_on_reference_is_found_from_the_velocities(cluster):
     context = _hot_start(system, positions, integrator, "Reference")
     with pytest.raises(StartBlowUpError, match=r"velocities were NaN or infinite after step \d+") as caught:
         integrator.step(3)
-    assert "unminimized" in str(caught.value) and "1.35h" not in str(caught.value)
+    assert "unminimized" in str(caught.value) and "1.70h" not in str(caught.value)
     del context
 
 

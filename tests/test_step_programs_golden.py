@@ -21,6 +21,7 @@ GOLDEN = Path(__file__).parent / "golden" / "step_programs.txt"
 INTEGRATORS = {
     "RattleIntegrator(0.002)": lambda: RattleIntegrator(0.002),
     "RattleRescaleIntegrator(0.002)": lambda: RattleRescaleIntegrator(0.002),
+    "RattleRescaleIntegrator(0.002, order=4)": lambda: RattleRescaleIntegrator(0.002, order=4),
     "AlphaRattleIntegrator(0.002, alpha=0)": lambda: AlphaRattleIntegrator(0.002, alpha=0.0),
     "AlphaRattleIntegrator(0.002, alpha=0.1)": lambda: AlphaRattleIntegrator(0.002, alpha=0.1),
     "AlphaRattleIntegrator(0.002, alpha=0, order=4)": lambda: AlphaRattleIntegrator(

@@ -12,7 +12,7 @@ reports RMS(H − E_ref) over the run, its force evaluations per step and its wa
 step against RATTLE's (interleaved timing rounds).
 
 The rows: the integrators asked for (default :data:`INTEGRATOR_NAMES`: RATTLE,
-RATTLE + rescaling, triple-jump RATTLE and α-RATTLE-4's energy mode) at h; for each of
+RATTLE + rescaling, α-RATTLE-4 at α = 0 and its energy mode) at h; for each of
 them that costs k > 1 force evaluations per step (rounded up), RATTLE and RATTLE +
 rescaling at h/k (equal force evaluations); and for each that costs r > 1 RATTLE steps
 of wall time (rounded up), RATTLE at h/r (equal wall time on this platform).

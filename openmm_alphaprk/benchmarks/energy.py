@@ -316,7 +316,7 @@ def ratios_to_rattle(rows: Sequence[EnergyRow]) -> dict[str, dict[str, float | s
     RATTLE at the same step). ``rms_vs_rattle_equal_cost``: the equal-cost RATTLE row's
     RMS (RATTLE at h/k, k the force evaluations per step of :data:`EQUAL_COST_REFERENCE`)
     / the row's, given for the rows whose evaluations per step round up to that k.
-    For the energy-mode rows also ``rms_vs_alpha4_0`` (triple-jump RATTLE's RMS / the
+    For the energy-mode rows also ``rms_vs_alpha4_0`` (the order-4 composition of RATTLE steps: its RMS / the
     row's) and ``rms_vs_best_fixed_alpha`` with ``best_fixed_alpha`` (the label of the
     fixed-α row with the lowest RMS), where those rows ran; a ratio below 1 means the
     baseline did better.

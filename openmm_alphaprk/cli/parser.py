@@ -104,8 +104,9 @@ def _add_compare_parser(sub) -> None:
             "error, force evaluations per step, ns/day) and write comparison.json, table.txt and "
             "energy_residuals.png into the output folder, by default alphaprk-compare-<system> in the "
             "current directory (-o to choose another). After the listed runs, RATTLE also runs at h/k "
-            "for the same simulated time, k the force evaluations per step of an energy-mode row rounded "
-            "up: the table states each energy mode's gain at equal cost (--no-equal-cost skips it). Each "
+            "for the same simulated time, k the force evaluations per step of each row that takes more than "
+            "one, rounded up: the table states each such row's gain at equal cost (--no-equal-cost skips "
+            "it). Each "
             "row's position error against RATTLE at h/64 after a few steps (--accuracy-steps, 0: none) is "
             "the table's last column: exact energy is not accurate dynamics. " + VERLET_NOTE
         ),

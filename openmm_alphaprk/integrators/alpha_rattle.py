@@ -9,8 +9,9 @@ The classes, each an integrator (the pieces they are built from are in :mod:`~.p
 
 ``AlphaRattleIntegrator(timestep, alpha="energy")`` returns an
 :class:`AlphaRattleEnergyIntegrator`. The four programs (fixed α or the energy mode, at
-order 2 or 4) are the ``_build_*`` methods below, side by side; the order-4 programs
-share one loop (:meth:`~.pieces._StepProgram._add_order4_loop`).
+order 2 or a composition) are the ``_build_*`` methods below, side by side; the composition programs
+share one loop over the stages (:meth:`~.pieces._StepProgram._add_composition_loop`), built
+from the composition's coefficients (:mod:`~.compositions`).
 
 **The energy mode.** Each step chooses α so that the total energy after the step equals the reference
 energy E_ref, the energy of the state the run started from. The
@@ -38,22 +39,23 @@ controller runs entirely inside the ``CustomIntegrator`` step program, in one
    already measures S above the energy tolerance) so that the step measures its
    own slope (at a bound, where that move would leave the interval, it probes
    inwards). Every move is limited to
-   ``max_alpha_change`` (at order 4 a limit that halves when α swings back and forth,
+   ``max_alpha_change`` (on a composition a limit that halves when α swings back and forth,
    see ``_add_trust_update``) and clipped to the α bounds. A new trial first solves
    x1 again with the new α and the last midpoint force, then goes on with step 2.
 
-At order 4 (α-RATTLE-4) the first RATTLE sub-step is taken once, and the first trial
-takes the middle α-RATTLE sub-step (steps 1–2 with h scaled by γ2) and the last RATTLE
-sub-step: three force evaluations. After the predictor's warm-up a later trial is
-*short*: it redoes the middle sub-step only, with the last midpoint force where the
-change of α is too small for a new one to matter, and predicts the last sub-step's
-energy change from the full trials (one force evaluation); once α stops, the last
-sub-step is taken at that α and its measured residual decides whether the step ends.
+On a composition (order 4 or 6) the RATTLE stages before the α stage are taken once,
+and the first trial takes the α stage (steps 1–2 with h scaled by its coefficient) and
+the RATTLE stages after it: for Suzuki's five stages 2 + 1 + 2 force evaluations
+and the midpoint's. After the predictor's warm-up a later trial is *short*: it redoes
+the α stage only, with the last midpoint force where the change of α is too small for
+a new one to matter, and predicts the later stages' energy change from the full trials
+(one force evaluation); once α stops, the later stages are taken at that α and their
+measured residual decides whether the step ends.
 
 α stops moving when the energy is within tolerance, when α sits at a bound and the
 root lies beyond it (the *fallback*: the best α inside the bounds), or after
 ``max_trials`` trials (also a fallback); ``max_midpoint_iterations`` caps the midpoint
-forces of a step. At order 4 a step whose last trial missed the tolerance and ended
+forces of a step. On a composition a step whose last trial missed the tolerance and ended
 farther from E_ref than an earlier trial ends in that earlier trial's state (one more
 force evaluation, at the next step's start). E_ref is never moved by the controller, so a residual left by a
 fallback is corrected by later steps and cannot accumulate into drift. A non-finite
@@ -85,7 +87,7 @@ from .energy_settings import (
     check_alpha_bounds,
     controller_settings,
 )
-from .compositions import COMPOSITIONS, DEFAULT_COMPOSITIONS, Composition, composition
+from .compositions import DEFAULT_COMPOSITIONS, Composition, composition
 from .pieces import (
     ACCEPTED_MIDPOINT_CHANGE,
     DEFAULT_CONSTRAINT_TOLERANCE,
@@ -144,8 +146,9 @@ class AlphaRattleIntegrator(_StepProgram):
     quadratic invariants (linear and angular momentum), and is of order 2
     (Li & Wang, J. Comput. Math. 41, 2023).
 
-    With ``order=4`` the step is α-RATTLE-4, a triple-jump composition with α on the
-    middle sub-step only. With ``alpha="energy"`` the call returns an
+    With ``order=4`` or ``6``, or a ``composition``, the step is a symmetric composition
+    of such steps (:mod:`~.compositions`), α on its middle stage unless ``alpha_stages``
+    says otherwise. With ``alpha="energy"`` the call returns an
     :class:`AlphaRattleEnergyIntegrator`, which chooses α anew every step so that the
     total energy after the step equals E_ref, the energy of the starting state (the
     controller: this module's docstring). Each step is still a member of the family, so
@@ -182,7 +185,10 @@ class AlphaRattleIntegrator(_StepProgram):
         (order 4) more).
     alpha_bounds
         Energy mode: the interval (low, high) α* is kept in; default (−0.5, 1.5) at
-        order 2, (−0.2, 0.2) at order 4.
+        order 2; on a composition (−0.2, 0.2) × s, s = (1.702/|c_α|)³ the α
+        stage's authority against the triple jump's middle stage
+        (:func:`~.energy_settings.alpha_scale_of`: 1 for the triple jump, 17.3 for
+        Suzuki's 5-stage composition).
     energy_tolerance
         Energy mode: target |H − E_ref| after each step (Quantity or kJ/mol). The
         default (None) is 3× the measured noise of OpenMM's energy for the system's
@@ -201,21 +207,31 @@ class AlphaRattleIntegrator(_StepProgram):
         sub-step once α stopped does not count as a trial).
     max_alpha_change
         Energy mode: the largest change of α one secant update may make (default 1
-        at order 2, 0.05 at order 4).
+        at order 2, 0.05 × s on a composition).
     alpha_probe
         Energy mode: the smallest first move of α in a step, so that the step can
-        measure its own slope dH/dα (default 0.05 at order 2, 0.005 at order 4).
+        measure its own slope dH/dα (default 0.05 at order 2, 0.005 × s on a composition).
     slope_damping
         Energy mode: d in the damped secant step Δα = −r S/(S² + (d S̄)²), where S̄
         is a running mean of the measured slopes |S| (0 turns the damping off).
     order
-        2: the α-RATTLE step. 4: α-RATTLE-4, the symmetric composition
-        Ψ^0_{γ1 h} ∘ Ψ^α_{γ2 h} ∘ Ψ^0_{γ1 h} with γ1 = 1/(2 − 2^{1/3}),
-        γ2 = 1 − 2γ1: fourth order at α = 0 (three force
-        evaluations per step), second order at a fixed α ≠ 0, and fourth order
-        again in the energy mode, where α* = O(h²). Its sub-steps are 1.35h, −1.70h
-        and 1.35h (a scan on a water box found it, like RATTLE, stable up to 5 fs,
-        the largest step scanned).
+        2 (default): the α-RATTLE step. 4: α-RATTLE-4, the default fourth-order
+        composition, Suzuki's five stages (p, p, 1 − 4p, p, p), p = 1/(4 − 4^{1/3}):
+        fourth order at α = 0 (five force evaluations per step), second order at a
+        fixed α ≠ 0 on one stage, and fourth order again in the energy mode, where
+        α* = O(h²). Its sub-steps are 0.41h and −0.66h. 6: the default sixth-order
+        composition, McLachlan's nine stages. ``docs/compositions.md`` has the
+        measurements behind the defaults.
+    composition
+        A name of :data:`~.compositions.COMPOSITIONS` (``"triple-jump"``, the former
+        order-4 default, three stages 1.35h, −1.70h, 1.35h; ``"suzuki5"``,
+        ``"mclachlan5"``, ``"yoshida7"``, ``"kahan-li-s9odr6a"``, ``"mclachlan9"``) or a
+        :class:`~.compositions.Composition`; sets the order.
+    alpha_stages
+        The stages that carry α: ``"middle"`` (default), ``"all"`` or stage numbers
+        (1-based). With α on every stage a fixed α keeps the composition's order (it
+        composes one symmetric second-order method); the energy mode takes α on one
+        stage.
 
     Notes
     -----
@@ -401,7 +417,7 @@ class AlphaRattleIntegrator(_StepProgram):
                 f"this system: {count} particle(s) have zero mass (virtual sites). "
                 "α ≠ 0 takes a force at the unconstrained midpoint of the step, where no OpenMM "
                 "platform places virtual sites. With virtual sites use alpha=0 (RATTLE, or order=4 for "
-                "triple-jump RATTLE) on CUDA, OpenCL or HIP after integrator.check_context(context), or "
+                "a fourth-order composition of RATTLE steps) on CUDA, OpenCL or HIP after integrator.check_context(context), or "
                 "openmm.VerletIntegrator."
             )
         return super()._massless_refusal(count, platform)
@@ -463,15 +479,7 @@ class AlphaRattleIntegrator(_StepProgram):
         """The composition the step is made of, α's stages marked (None: one α-RATTLE step)."""
         if "_composition" in vars(self):
             return self._composition
-        names = [self.getGlobalVariableName(i) for i in range(self.getNumGlobalVariables())]
-        stages = sum(name.startswith("stage_coefficient_") for name in names)
-        if not stages:
-            return None
-        coefficients = tuple(self.getGlobalVariableByName(f"stage_coefficient_{i}") for i in range(1, stages + 1))
-        on = tuple(i for i in range(1, stages + 1) if self.getGlobalVariableByName(f"alpha_on_stage_{i}"))
-        known = [c for c in COMPOSITIONS.values() if c.coefficients == coefficients]
-        name = known[0].name if known else "restored"
-        return Composition(name, coefficients, self.order, "restored from the program", on)
+        return self._recorded_composition(self.order)
 
     def __repr__(self) -> str:
         alpha = "'energy'" if self.energy_mode else self.alpha

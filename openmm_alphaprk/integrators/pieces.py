@@ -77,7 +77,7 @@ import openmm.unit as unit
 
 from .. import platforms, start_blowup
 from .._units import InputError, to_dimensionless, to_float
-from .compositions import Composition
+from .compositions import COMPOSITIONS, Composition
 from .variables import (
     ALPHA,
     CHECK_SYSTEM,
@@ -342,9 +342,26 @@ class _StepProgram(mm.CustomIntegrator):
                 self.addGlobalVariable("next_stage_midpoint", 0)
             for name in ("xstep", "vstep"):
                 self.addPerDofVariable(name, 0)
-            for i, c in enumerate(composition.coefficients, start=1):
-                self.addGlobalVariable(f"stage_coefficient_{i}", c)
-                self.addGlobalVariable(f"alpha_on_stage_{i}", float(i in composition.alpha_stages))
+            self._add_composition_record(composition)
+
+    def _add_composition_record(self, composition: Composition) -> None:
+        """Keep a composition's coefficients and α's stages as globals (:meth:`_recorded_composition`)."""
+        for i, c in enumerate(composition.coefficients, start=1):
+            self.addGlobalVariable(f"stage_coefficient_{i}", c)
+            self.addGlobalVariable(f"alpha_on_stage_{i}", float(i in composition.alpha_stages))
+
+    def _recorded_composition(self, order: int) -> Composition | None:
+        """The composition the program was built from, read back from its globals (None: none)."""
+        names = [self.getGlobalVariableName(i) for i in range(self.getNumGlobalVariables())]
+        stages = sum(name.startswith("stage_coefficient_") for name in names)
+        if not stages:
+            return None
+        coefficients = tuple(self.getGlobalVariableByName(f"stage_coefficient_{i}") for i in range(1, stages + 1))
+        on = tuple(i for i in range(1, stages + 1) if self.getGlobalVariableByName(f"alpha_on_stage_{i}"))
+        known = [c for c in COMPOSITIONS.values() if c.coefficients == coefficients]
+        if known:
+            return known[0].with_alpha_on(on)
+        return Composition("restored", coefficients, order, "read back from the step program", on)
 
     # ------------------------------------------------------ α-RATTLE's midpoint
     def _add_midpoint_setup(self, need_midpoint: str) -> None:
@@ -408,15 +425,17 @@ class _StepProgram(mm.CustomIntegrator):
         self._add_end_step()
 
     # ------------------------------------------------ a composition's sub-steps
-    def _add_leading_substeps(self, composition: Composition) -> None:
-        """Take the RATTLE stages before the first stage with α, from the step's start (F(x0) in ``fstart``).
+    def _add_leading_substeps(self, composition: Composition, last: int | None = None) -> None:
+        """Take the RATTLE stages before the first stage with α (or up to ``last``), from the step's start.
+
+        F(x0) is in ``fstart``.
 
         Straight-line code, taken once per step: each stage's position solve is
         followed by its constraint step, so the force read after it sees the solved
         positions on every platform (rule 1), and each projects along the positions of
         the stage's start, left by the previous constraint step (rule 2).
         """
-        for i in range(1, composition.first_alpha_stage):
+        for i in range(1, (composition.first_alpha_stage - 1 if last is None else last) + 1):
             h = _substep_h(composition, i)
             if i > 1:
                 self.addComputePerDof("x0", "x")

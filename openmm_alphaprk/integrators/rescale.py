@@ -32,6 +32,8 @@ import math
 import openmm as mm
 import openmm.unit as unit
 
+from .._units import InputError
+from .compositions import DEFAULT_COMPOSITIONS, Composition, composition as named_composition
 from .pieces import DEFAULT_CONSTRAINT_TOLERANCE, _StepProgram
 from .reference_energy import _ReferenceEnergy, energy_tolerance_setting
 from .variables import RATTLE_RESIDUAL, RESCALE_HALTED, STEPS_TAKEN, VELOCITY_SCALE
@@ -90,6 +92,12 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         keeps E_ref (see :attr:`energy_tolerance`); default: 3× the noise of OpenMM's
         energy for the system's size and the platform's precision, set by
         :meth:`check_context`.
+    order, composition
+        Instead of one RATTLE step, a symmetric composition of RATTLE steps
+        (:mod:`~.compositions`): ``order=4`` (Suzuki's five stages), ``order=6``
+        (McLachlan's nine), or a composition by name; the rescaling follows its last
+        stage. s force evaluations per step for s stages, the energy read with the last.
+        The trajectory is the composition's (fourth or sixth order) but for the scale s.
     """
 
     _kind = 3
@@ -101,11 +109,16 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         constraint_tolerance: float = DEFAULT_CONSTRAINT_TOLERANCE,
         *,
         energy_tolerance: unit.Quantity | float | None = None,
+        order: int | None = None,
+        composition: str | Composition | None = None,
     ) -> None:
         tolerance = energy_tolerance_setting(energy_tolerance)
+        self._composition = _rattle_composition(order, composition)
         super().__init__(timestep, constraint_tolerance)
         self._add_reference_energy_variables(tolerance)
         self._add_rescale_variables()
+        if self._composition is not None:
+            self._add_composition_record(self._composition)
         self._add_step(self._build_program, update_context_state=False, halted=RESCALE_HALTED)
 
     def _add_rescale_variables(self) -> None:
@@ -140,8 +153,11 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         """
         self._add_save_step_start(fstart="f")
         self._add_reference_check(on_moved=self._add_axis_weights)
-        self._add_position_solve("0.5*fstart")
-        self._add_velocity_update("0.5*f")
+        if self._composition is None:
+            self._add_position_solve("0.5*fstart")
+            self._add_velocity_update("0.5*f")
+        else:
+            self._add_leading_substeps(self._composition, last=self._composition.stages)
         self._add_rigid_body_motion()
         self._add_scale_factor()
         self._add_halt_without_factor()
@@ -300,6 +316,14 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
 
     # ---------------------------------------------------------------- what the user reads
     @property
+    def composition(self) -> Composition | None:
+        """The composition of RATTLE steps the step is made of (None: one RATTLE step)."""
+        if "_composition" in vars(self):
+            return self._composition
+        names = [self.getGlobalVariableName(i) for i in range(self.getNumGlobalVariables())]
+        return self._recorded_composition(0) if "stage_coefficient_1" in names else None
+
+    @property
     def velocity_scale(self) -> float:
         """The factor s the last step scaled the velocities relative to the rigid-body motion by."""
         return self.getGlobalVariableByName(VELOCITY_SCALE)
@@ -353,3 +377,18 @@ def _angular_velocity(axis: str) -> str:
         "ixy = inertia_xy; ixz = inertia_xz; iyz = inertia_yz;"
         f"eps = {_INERTIA_REGULARIZATION!r}*sum_inertia"
     )
+
+
+def _rattle_composition(order: int | None, name: str | Composition | None) -> Composition | None:
+    """The composition of RATTLE steps that ``order`` or ``name`` ask for (None: one RATTLE step)."""
+    if order is not None and (isinstance(order, bool) or order not in (2, 4, 6)):
+        raise InputError(f"order must be 2 (one RATTLE step), 4 or 6 (a composition of RATTLE steps), got {order!r}.")
+    if name is None and order in (None, 2):
+        return None
+    chosen = named_composition(DEFAULT_COMPOSITIONS[order] if name is None else name)
+    if order is not None and order != chosen.order:
+        raise InputError(
+            f"composition {chosen.name!r} is of order {chosen.order}, but order={order} was given; "
+            "leave order out or give a composition of that order."
+        )
+    return chosen

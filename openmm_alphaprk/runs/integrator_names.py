@@ -9,6 +9,10 @@ Names (:data:`VOCABULARY`, in the order ``--help`` lists them):
     :class:`~openmm_alphaprk.RattleRescaleIntegrator` (RATTLE, then the velocities
     relative to the rigid-body motion scaled so that H = E_ref; one force evaluation per
     step): the cheapest way to hold the energy, the baseline of the energy modes.
+``rattle4+rescale``, ``rattle6+rescale``
+    :class:`~openmm_alphaprk.RattleRescaleIntegrator` on the default fourth- or
+    sixth-order composition of RATTLE steps (``order=4``, ``order=6``): the
+    composition's trajectory, its energy held at E_ref by the rescaling.
 ``alpha=<number>``
     :class:`~openmm_alphaprk.AlphaRattleIntegrator` with that fixed α; fractions
     are accepted (``alpha=1/6``). ``alpha=0`` is RATTLE.
@@ -16,15 +20,16 @@ Names (:data:`VOCABULARY`, in the order ``--help`` lists them):
     :class:`~openmm_alphaprk.AlphaRattleIntegrator` in the energy-preserving mode
     (``alpha="energy"``: α chosen every step so that H stays at E_ref).
 ``alpha4=<number>``
-    α-RATTLE-4 (``order=4``, the triple-jump composition with α on the middle
-    sub-step) with that fixed α; ``alpha4=0`` is triple-jump RATTLE (fourth order,
-    three force evaluations per step).
+    α-RATTLE-4 (``order=4``: Suzuki's five-stage composition with α on the middle
+    stage) with that fixed α; ``alpha4=0`` is its composition of RATTLE steps (fourth
+    order, five force evaluations per step).
 ``energy4``
     α-RATTLE-4 in the energy-preserving mode (α* = O(h²)).
 ``alpha6=<number>``, ``energy6``
     The same on the default sixth-order composition.
 ``<name>:<composition>``
-    ``alpha4``, ``energy4``, ``alpha6`` or ``energy6`` on a named composition of
+    ``alpha4``, ``energy4``, ``alpha6``, ``energy6``, ``rattle4+rescale`` or
+    ``rattle6+rescale`` on a named composition of
     :data:`~openmm_alphaprk.integrators.compositions.COMPOSITIONS` instead of the
     order's default (``energy4:triple-jump``, ``alpha4=0:suzuki5``).
 ``verlet``
@@ -87,6 +92,20 @@ VOCABULARY = (
         "so that H = E_ref; 1 force evaluation/step, its energy read with it)",
     ),
     IntegratorName(
+        "rattle4+rescale",
+        "rescale",
+        4,
+        "RattleRescaleIntegrator(order=4): Suzuki's 5-stage composition of RATTLE steps, then the "
+        "rescaling (5 evaluations/step, the energy read with the last)",
+    ),
+    IntegratorName(
+        "rattle6+rescale",
+        "rescale",
+        6,
+        "RattleRescaleIntegrator(order=6): McLachlan's 9-stage composition of RATTLE steps, then the "
+        "rescaling (9 evaluations/step)",
+    ),
+    IntegratorName(
         "alpha=<number>",
         "alpha",
         2,
@@ -104,21 +123,22 @@ VOCABULARY = (
         "alpha4=<number>",
         "alpha",
         4,
-        "the same with order=4 (triple jump, alpha on the middle sub-step; alpha4=0 is 4th-order "
-        "triple-jump RATTLE, 3 evaluations/step)",
+        "the same with order=4 (Suzuki's 5-stage composition, alpha on the middle stage; alpha4=0 is "
+        "its 4th-order composition of RATTLE steps, 5 evaluations/step)",
     ),
     IntegratorName(
         "energy4",
         "energy",
         4,
-        "order=4 in the energy mode (the first sub-step once, then the middle and last sub-steps "
-        "again for each trial of alpha)",
+        "order=4 in the energy mode (the stages before the middle once, then the middle stage and "
+        "those after it again for each trial of alpha)",
     ),
     IntegratorName(
         "alpha6=<number>",
         "alpha",
         6,
-        "the same on the default sixth-order composition (alpha6=0 is its RATTLE composition)",
+        "the same with order=6 (McLachlan's 9-stage composition; alpha6=0 is its 6th-order composition "
+        "of RATTLE steps, 9 evaluations/step)",
     ),
     IntegratorName("energy6", "energy", 6, "the energy mode on the default sixth-order composition"),
     IntegratorName("verlet", "verlet", 2, VERLET_IS_LEAPFROG),
@@ -188,7 +208,8 @@ def parse_integrator(text: str | IntegratorSpec) -> IntegratorSpec:
     if colon:
         if entry is None or entry.order == 2:
             raise UnknownIntegratorError(
-                f"{text!r}: only alpha4, energy4, alpha6 and energy6 take a composition (e.g. energy4:triple-jump)."
+                f"{text!r}: only alpha4, energy4, alpha6, energy6, rattle4+rescale and rattle6+rescale take a "
+                "composition (e.g. energy4:triple-jump)."
             )
         found = COMPOSITIONS.get(chosen)
         if found is None or found.order != entry.order:
@@ -232,8 +253,12 @@ def label(spec: str | IntegratorSpec) -> str:
     """
     spec = parse_integrator(spec)
     family = "α-RATTLE" if spec.order == 2 else f"α-RATTLE-{spec.order}"
+    if spec.kind == "rescale" and spec.order != 2:
+        family = f"RATTLE-{spec.order}"
     if spec.composition is not None:
         family += f" ({spec.composition})"
+    if spec.kind == "rescale" and spec.order != 2:
+        return f"{family} + rescaling"
     if spec.kind == "energy":
         return f"{family} energy mode"
     if spec.kind != "alpha":
@@ -256,7 +281,9 @@ def make_integrator(
     if spec.kind == "rattle":
         return RattleIntegrator(timestep, constraint_tolerance)
     if spec.kind == "rescale":
-        return RattleRescaleIntegrator(timestep, constraint_tolerance)
+        return RattleRescaleIntegrator(
+            timestep, constraint_tolerance, order=spec.order, composition=spec.composition
+        )
     if spec.kind == "alpha":
         return AlphaRattleIntegrator(
             timestep,

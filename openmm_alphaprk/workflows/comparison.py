@@ -18,7 +18,7 @@ from ..runs.reporters import EVERY_STEP
 from ..systems import PreparedSystem, load_definition, prepare_system
 
 DEFAULT_SYSTEM = "tip3p-3nm"
-DEFAULT_INTEGRATORS = ("rattle", "rattle+rescale", "energy4", "alpha4=0", "verlet")
+DEFAULT_INTEGRATORS = ("rattle", "rattle+rescale", "alpha4=0", "rattle4+rescale", "energy4", "verlet")
 #: Steps of h after which each row's position error is taken against RATTLE at h/64 (2 fs: 20 fs).
 ACCURACY_STEPS = 10
 COMPARISON_FILE = "comparison.json"
@@ -77,9 +77,9 @@ def compare(
         Write the figure (needs matplotlib).
     equal_cost
         After the listed runs, also run RATTLE at h/k for the same simulated time, k the
-        measured force evaluations per step of an energy-mode row rounded up (one run
-        per distinct k; folder ``rattle_h_k``), and state each energy-mode row's gain at
-        equal cost, RMS(H − E_ref) of RATTLE at h/k over the row's (table, JSON).
+        measured force evaluations per step of a row that takes more than one, rounded
+        up (one run per distinct k; folder ``rattle_h_k``), and state each such row's
+        gain at equal cost, RMS(H − E_ref) of RATTLE at h/k over the row's (table, JSON).
     accuracy_steps
         Also give every row's position error against RATTLE at h/64 after this many
         steps from the start (a separate short run of each; 0: none), the table's
@@ -145,13 +145,20 @@ def equal_cost_name(k: int) -> str:
     return f"rattle h/{k}"
 
 
+def _costs_more_than_rattle(summary: RunSummary) -> bool:
+    """True for a row that takes more than one force evaluation per step (not an equal-cost row itself)."""
+    return not summary.integrator.startswith(equal_cost_name(0)[:-1]) and equal_cost_divisor(
+        summary.force_evaluations_per_step
+    ) > 1
+
+
 def equal_cost_divisors(summaries: Sequence[RunSummary]) -> list[int]:
-    """Return the distinct k = ⌈force evaluations per step⌉ of the energy-mode rows, in row order."""
+    """Return the distinct k = ⌈force evaluations per step⌉ > 1 of the rows, in row order."""
     divisors = []
     for summary in summaries:
-        if summary.controller:
+        if _costs_more_than_rattle(summary):
             k = equal_cost_divisor(summary.force_evaluations_per_step)
-            if k > 1 and k not in divisors:
+            if k not in divisors:
                 divisors.append(k)
     return divisors
 
@@ -174,7 +181,7 @@ def _run_equal_cost_rattle(
 def equal_cost_gains(
     summaries: Sequence[RunSummary], accuracy: dict[str, Horizon] | None = None
 ) -> list[dict]:
-    """For each energy-mode row with a RATTLE h/k row: k and RMS(H − E_ref) of RATTLE h/k over the row's.
+    """For each row of k > 1 evaluations per step with a RATTLE h/k row: k and RMS(H − E_ref) of RATTLE h/k over the row's.
 
     With ``accuracy`` (:func:`_accuracy`'s errors) also both rows' RMS position errors and
     their ratio, ``position_gain`` (RATTLE h/k's over the row's: below 1, RATTLE at equal
@@ -184,7 +191,7 @@ def equal_cost_gains(
     by_name = {summary.integrator: summary for summary in summaries}
     gains = []
     for summary in summaries:
-        if not summary.controller:
+        if not _costs_more_than_rattle(summary):
             continue
         k = equal_cost_divisor(summary.force_evaluations_per_step)
         rattle = by_name.get(equal_cost_name(k))
@@ -215,7 +222,7 @@ def _ratio_text(ratio: float) -> str:
 
 
 def gain_line(gain: dict) -> str:
-    """Return the table's line for one energy-mode row's gain at equal cost (or its loss, said as such)."""
+    """Return the table's line for one row's gain at equal cost (or its loss, said as such)."""
     line = (
         f"{gain['integrator']} at equal cost: RMS|H - E_ref| {gain['rms_residual']:.3g} kJ/mol against "
         f"{gain['rattle_row']} ({gain['k']} RATTLE steps of h/{gain['k']} per step of h, the same force "
@@ -401,7 +408,7 @@ def format_comparison_table(
 
     Drifts are printed by :func:`~openmm_alphaprk.observables.drift_text` (± standard
     error, or "not resolved"), energies with three significant digits, as in the figure.
-    ``gains`` (:func:`equal_cost_gains`) adds a line per energy-mode row; ``accuracy``
+    ``gains`` (:func:`equal_cost_gains`) adds a line per row of more than one evaluation per step; ``accuracy``
     (row name → :class:`~openmm_alphaprk.runs.accuracy.Horizon`) a column of RMS position
     errors against RATTLE at h/64.
     """
