@@ -320,7 +320,9 @@ def test_tip4pew_with_rattle_and_triple_jump_conserves_energy_like_verlet(tip4pe
     steps = 200
     verlet, _ = _energy_trace(system, mm.VerletIntegrator(H), spec, x0, v0, steps)
     rattle, rattle_context = _energy_trace(system, RattleIntegrator(H), spec, x0, v0, steps)
-    triple, _ = _energy_trace(system, AlphaRattleIntegrator(H, 0.0, composition="triple-jump"), spec, x0, v0, steps)
+    triple, _ = _energy_trace(
+        system, AlphaRattleIntegrator(H, 0.0, composition="triple-jump"), spec, x0, v0, steps
+    )
     (verlet_rms, verlet_drift), (rattle_rms, rattle_drift) = _rms_and_drift(verlet), _rms_and_drift(rattle)
     triple_rms, triple_drift = _rms_and_drift(triple)
     # measured on OpenCL (pocl, double and mixed), kJ/mol: RMS Verlet 0.34, RATTLE 0.48, triple

@@ -34,7 +34,9 @@ def pendulum():
     problem = planar_pendulum(kappa=2.0)
     x0, v0 = planar_pendulum_start(1.0)
     # sixth order at 256 steps: 3e-12 from 128 steps (more steps only add SHAKE round-off)
-    x_ref, v_ref = integrate(problem, x0, v0, T_END / 256, 256, 0.0, step=composition_step, composition="mclachlan9")
+    x_ref, v_ref = integrate(
+        problem, x0, v0, T_END / 256, 256, 0.0, step=composition_step, composition="mclachlan9"
+    )
     return problem, x0, v0, np.concatenate([x_ref, v_ref])
 
 
@@ -55,7 +57,9 @@ def test_each_named_composition_has_its_order(pendulum, name):
 
 
 @pytest.mark.parametrize(("stages", "order"), [("middle", 2.0), ((1,), 2.0), ("all", 4.0)])
-def test_a_fixed_alpha_on_one_stage_is_second_order_and_on_every_stage_keeps_the_order(pendulum, stages, order):
+def test_a_fixed_alpha_on_one_stage_is_second_order_and_on_every_stage_keeps_the_order(
+    pendulum, stages, order
+):
     """α on every stage composes one symmetric second-order map (α-RATTLE at that α): order 4 stays."""
     chosen = COMPOSITIONS["suzuki5"].with_alpha_on(stages)
     errors = [_error(pendulum, chosen, n, alpha=0.3) for n in (32, 64)]
@@ -102,7 +106,12 @@ def test_openmm_program_is_the_reference_step_with_alpha_on_any_stages(stages, a
     chosen = COMPOSITIONS["suzuki5"].with_alpha_on(stages)
     problem, x0, v0 = water_cluster(3)
     integrator = AlphaRattleIntegrator(
-        0.002, alpha, composition=chosen, constraint_tolerance=1e-12, midpoint_tolerance=1e-14, max_midpoint_iterations=100
+        0.002,
+        alpha,
+        composition=chosen,
+        constraint_tolerance=1e-12,
+        midpoint_tolerance=1e-14,
+        max_midpoint_iterations=100,
     )
     ctx = make_context(to_openmm_system(problem), integrator, x0.reshape(-1, 3), v0.reshape(-1, 3))
     _, v_ref, xs, _ = integrate(

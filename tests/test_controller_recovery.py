@@ -191,7 +191,11 @@ def test_order4_energy_mode_beats_every_fixed_alpha_of_a_scan_on_a_solute(
     """Better than the best α the user could have fixed (582-atom solute in vacuum, Reference)."""
     steps = 200
     fixed = {
-        alpha: rms(_residuals_on(solute_in_vacuum, AlphaRattleIntegrator(0.002, alpha=alpha, composition="triple-jump"), steps))
+        alpha: rms(
+            _residuals_on(
+                solute_in_vacuum, AlphaRattleIntegrator(0.002, alpha=alpha, composition="triple-jump"), steps
+            )
+        )
         for alpha in (0.0, 0.005, 0.01, 0.015, 0.02)
     }
     # the first 200 steps of the shared 300-step run are the 200-step run (Reference is deterministic)
@@ -308,7 +312,10 @@ def test_order4_energy_mode_beats_every_fixed_alpha_of_a_scan_on_solvated_villin
         return rms(energy_residuals(context, integrator, 150).residuals)
 
     alphas = (0.0, 0.005, 0.01, 0.015, 0.02)
-    fixed = {alpha: energy_rms(AlphaRattleIntegrator(0.002, alpha=alpha, composition="triple-jump")) for alpha in alphas}
+    fixed = {
+        alpha: energy_rms(AlphaRattleIntegrator(0.002, alpha=alpha, composition="triple-jump"))
+        for alpha in alphas
+    }
     energy_mode = energy_rms(AlphaRattleIntegrator(0.002, alpha="energy", composition="triple-jump"))
     assert energy_mode < min(fixed.values()), (energy_mode, fixed)
 

@@ -52,7 +52,9 @@ def test_energy_mode_keeps_angular_momentum_to_round_off_by_default_without_a_bo
 
 
 def test_totals_give_the_rms_and_maximum_of_every_step():
-    integrator = AlphaRattleIntegrator(0.002, alpha="energy", composition="triple-jump", constraint_tolerance=1e-12)
+    integrator = AlphaRattleIntegrator(
+        0.002, alpha="energy", composition="triple-jump", constraint_tolerance=1e-12
+    )
     _, ctx = _cluster_context(integrator)
     assert np.isnan(integrator.controller_totals()["rms_residual"])
     measured, _, _ = _residuals(ctx, integrator, 40, total_energy(ctx))
@@ -63,7 +65,9 @@ def test_totals_give_the_rms_and_maximum_of_every_step():
 
 
 def test_a_chosen_midpoint_tolerance_is_kept_without_a_box():
-    integrator = AlphaRattleIntegrator(0.002, alpha="energy", composition="triple-jump", midpoint_tolerance=1e-7)
+    integrator = AlphaRattleIntegrator(
+        0.002, alpha="energy", composition="triple-jump", midpoint_tolerance=1e-7
+    )
     _, ctx = _cluster_context(integrator)
     integrator.check_context(ctx)
     integrator.step(1)

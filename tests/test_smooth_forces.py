@@ -432,7 +432,8 @@ def test_start_blow_up_on_cpu_names_the_causes_and_keeps_openmms_message(water):
     with pytest.raises(StartBlowUpError) as caught:
         integrator.step(5)
     message = str(caught.value)
-    for words in ("first 100 steps", "LocalEnergyMinimizer", "minimizeEnergy", "too hot", "1.70h", "0.59× RATTLE's"):
+    words_expected = ("first 100 steps", "LocalEnergyMinimizer", "minimizeEnergy", "too hot", "1.70h")
+    for words in (*words_expected, "0.59× RATTLE's"):
         assert words in message
     assert "RattleIntegrator" in message and "1.2 fs" in message and "Suzuki" in message
     assert message.endswith(str(caught.value.__cause__))  # OpenMM's own message, appended

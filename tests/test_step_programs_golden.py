@@ -39,7 +39,9 @@ INTEGRATORS = {
     "AlphaRattleIntegrator(0.002, alpha=0.01, order=4, alpha_stages='all')": lambda: AlphaRattleIntegrator(
         0.002, alpha=0.01, order=4, alpha_stages="all"
     ),
-    "AlphaRattleIntegrator(0.002, alpha=0, order=6)": lambda: AlphaRattleIntegrator(0.002, alpha=0.0, order=6),
+    "AlphaRattleIntegrator(0.002, alpha=0, order=6)": lambda: AlphaRattleIntegrator(
+        0.002, alpha=0.0, order=6
+    ),
     "AlphaRattleIntegrator(0.002, alpha='energy')": lambda: AlphaRattleIntegrator(0.002, alpha="energy"),
     "AlphaRattleIntegrator(0.002, alpha='energy', order=4)": lambda: AlphaRattleIntegrator(
         0.002, alpha="energy", order=4

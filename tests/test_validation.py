@@ -305,7 +305,9 @@ def test_openmm_energy_mode_angular_momentum_is_set_by_the_midpoint_tolerance(cl
 def test_openmm_water_cluster_on_cpu_momenta_are_limited_by_single_precision_forces(cluster):
     reference = _invariant_changes(cluster, RattleIntegrator(0.002, 1e-8), 500)
     cpu = _invariant_changes(cluster, RattleIntegrator(0.002, 1e-8), 500, platform="CPU")
-    energy4 = _invariant_changes(cluster, AlphaRattleIntegrator(0.002, "energy", 1e-8, composition="triple-jump"), 500, "CPU")
+    energy4 = _invariant_changes(
+        cluster, AlphaRattleIntegrator(0.002, "energy", 1e-8, composition="triple-jump"), 500, "CPU"
+    )
     # page (40 ps): ~1e-6 relative for every integrator on CPU, 2.8e-12 for RATTLE on Reference
     assert cpu[0] > 1e3 * reference[0] and cpu[1] > 1e3 * reference[1]
     for dl, dp, *_ in (cpu, energy4):

@@ -17,19 +17,20 @@ Modules:
   HIP) platforms, the system check, ``step()``, ``check_context()`` and
   ``program_listing()``;
 - :mod:`~.rattle`: :class:`RattleIntegrator` and its program;
-- :mod:`~.rescale`: :class:`RattleRescaleIntegrator`, RATTLE followed by velocity
-  rescaling to E_ref (the baseline of the energy-holding methods), and its program;
+- :mod:`~.rescale`: :class:`RattleRescaleIntegrator`, RATTLE (or a composition of
+  RATTLE steps) followed by velocity rescaling to E_ref, and its program;
 - :mod:`~.reference_energy`: E_ref, when the integrators that hold it take it, and its API;
-- :mod:`~.alpha_rattle`: :class:`AlphaRattleIntegrator` (fixed α, orders 2 and 4) and
-  :class:`AlphaRattleEnergyIntegrator` (the energy mode), their four programs side by
-  side and the energy controller's pieces;
-- :mod:`~.energy_settings`: the energy mode's settings and defaults;
-  :mod:`~.compositions`: the named compositions (their stage coefficients); :mod:`~.variables`: the names
-  of the globals read from outside a program; :mod:`~.restore`:
-  :func:`restore_integrator`.
+- :mod:`~.compositions`: the named compositions, their coefficients and sources;
+- :mod:`~.alpha_rattle`: :class:`AlphaRattleIntegrator` (fixed α, one step or a
+  composition) and its two programs;
+- :mod:`~.energy_mode`: :class:`AlphaRattleEnergyIntegrator` (the energy mode), its two
+  programs and the controller's pieces; :mod:`~.energy_settings`: its settings and defaults;
+- :mod:`~.variables`: the names of the globals read from outside a program;
+  :mod:`~.restore`: :func:`restore_integrator`.
 """
 
-from .alpha_rattle import AlphaRattleEnergyIntegrator, AlphaRattleIntegrator
+from .alpha_rattle import AlphaRattleIntegrator
+from .energy_mode import AlphaRattleEnergyIntegrator
 from .pieces import (
     IncompatibleSystemError,
     MidpointConvergenceError,

@@ -1,140 +1,52 @@
-"""α-RATTLE and α-RATTLE-4 with a fixed α, and their energy-preserving mode: the whole step programs.
+"""α-RATTLE and its compositions with a fixed α: the whole step programs.
 
 The classes, each an integrator (the pieces they are built from are in :mod:`~.pieces`)::
 
     _StepProgram                      pieces.py: common state, pieces, stepping, listing
     ├ RattleIntegrator                rattle.py
-    └ AlphaRattleIntegrator           here: fixed α, orders 2 and 4
-      └ AlphaRattleEnergyIntegrator   here: α chosen every step to hold the energy
+    └ AlphaRattleIntegrator           here: fixed α, one step or a composition
+      └ AlphaRattleEnergyIntegrator   energy_mode.py: α chosen every step to hold the energy
 
 ``AlphaRattleIntegrator(timestep, alpha="energy")`` returns an
-:class:`AlphaRattleEnergyIntegrator`. The four programs (fixed α or the energy mode, at
-order 2 or a composition) are the ``_build_*`` methods below, side by side; the composition programs
+:class:`~.energy_mode.AlphaRattleEnergyIntegrator` (its programs and controller are in
+:mod:`~.energy_mode`). The two fixed-α programs (one step, or a composition) are the
+``_build_*`` methods below; the composition programs, fixed α and energy mode,
 share one loop over the stages (:meth:`~.pieces._StepProgram._add_composition_loop`), built
 from the composition's coefficients (:mod:`~.compositions`).
-
-**The energy mode.** Each step chooses α so that the total energy after the step equals the reference
-energy E_ref, the energy of the state the run started from. The
-controller runs entirely inside the ``CustomIntegrator`` step program, in one
-``while`` loop; each *trial* of an α is:
-
-1. the position solve with the current midpoint force (at the first trial of a
-   step a predictor: the force extrapolated from the previous step);
-2. the force at the midpoint x_m = (x0 + x1)/2 and the solve again: one midpoint
-   force per trial, so the midpoint converges along with α (the loop ends once α
-   stops moving and the last midpoint force changed x1 by less than
-   ``midpoint_tolerance``; trials after α froze only refine the midpoint);
-3. the force and energy at x1, v1 (RATTLE projection), the residual
-   r = U(x1) + K(v1) − E_ref;
-4. the next α by a damped secant step, Δα = −r S/(S² + (d S̄)²), with S = dr/dα
-   measured inside this step, S̄ a running geometric mean of |S| over past steps and
-   d = ``slope_damping``: where the slope nearly vanishes no bounded α can help, and
-   throwing α far would spoil the steps after it. The first trial's α is predicted
-   (:meth:`AlphaRattleEnergyIntegrator._add_alpha_prediction`): the step's energy change
-   at α = 0 and its slope S, fitted step by step as AR(2) series, give the α that
-   should land on E_ref, found by a Newton step from ᾱ, the fixed α that best held
-   the energy over past steps. The
-   second trial starts from the predicted slope and moves α by at least the probe
-   size (``alpha_probe``, or less where the typical slope says a smaller move
-   already measures S above the energy tolerance) so that the step measures its
-   own slope (at a bound, where that move would leave the interval, it probes
-   inwards). Every move is limited to
-   ``max_alpha_change`` (on a composition a limit that halves when α swings back and forth,
-   see ``_add_trust_update``) and clipped to the α bounds. A new trial first solves
-   x1 again with the new α and the last midpoint force, then goes on with step 2.
-
-On a composition (order 4 or 6) the RATTLE stages before the α stage are taken once,
-and the first trial takes the α stage (steps 1–2 with h scaled by its coefficient) and
-the RATTLE stages after it: for Suzuki's five stages 2 + 1 + 2 force evaluations
-and the midpoint's. After the predictor's warm-up a later trial is *short*: it redoes
-the α stage only, with the last midpoint force where the change of α is too small for
-a new one to matter, and predicts the later stages' energy change from the full trials
-(one force evaluation); once α stops, the later stages are taken at that α and their
-measured residual decides whether the step ends.
-
-α stops moving when the energy is within tolerance, when α sits at a bound and the
-root lies beyond it (the *fallback*: the best α inside the bounds), or after
-``max_trials`` trials (also a fallback); ``max_midpoint_iterations`` caps the midpoint
-forces of a step. On a composition a step whose last trial missed the tolerance and ended
-farther from E_ref than an earlier trial ends in that earlier trial's state (one more
-force evaluation, at the next step's start). E_ref is never moved by the controller, so a residual left by a
-fallback is corrected by later steps and cannot accumulate into drift. A non-finite
-residual or a midpoint iteration that ran away rejects the step (the context keeps
-the state at its start; ``step`` raises).
-
-E_ref is taken from the state at the first step, after ``reset_reference_energy()``,
-and when the user changed the state between steps, by the rule of
-:mod:`~.reference_energy` (shared with RATTLE + velocity rescaling).
 """
 
 from __future__ import annotations
 
+from functools import cache
 from typing import ClassVar
 
-import openmm as mm
 import openmm.unit as unit
 
 from .._units import InputError, to_dimensionless, to_float
 from ..observables import positive_int
+from .compositions import DEFAULT_COMPOSITIONS, Composition, composition
 from .energy_settings import (
     CONTROLLER_DEFAULTS,
     DEFAULT_SLOPE_DAMPING,
-    NON_PERIODIC_MIDPOINT_TOLERANCE,
-    PREDICTOR_FORGETTING,
-    PREDICTOR_WARMUP,
     ControllerSettings,
     alpha_scale_of,
-    check_alpha_bounds,
     controller_settings,
 )
-from .compositions import DEFAULT_COMPOSITIONS, Composition, composition
 from .pieces import (
-    ACCEPTED_MIDPOINT_CHANGE,
     DEFAULT_CONSTRAINT_TOLERANCE,
     MidpointConvergenceError,
     _StepProgram,
-    _substep_h,
     first_forces,
     last_forces,
 )
-from .reference_energy import _ReferenceEnergy
 from .variables import (
     ALPHA,
-    ALPHA_AT_BOUND,
-    FELL_BACK,
     MIDPOINT_CHANGE,
     MIDPOINT_ITERATIONS,
-    PREDICTED_D0,
-    PREDICTED_SLOPE,
-    RESIDUAL,
-    SLOPE,
-    SLOPE_SCALE,
-    TRIALS,
 )
 
 DEFAULT_MIDPOINT_TOLERANCE = 1e-10  # nm, RMS change of x1 per degree of freedom
 DEFAULT_MAX_MIDPOINT_ITERATIONS = 20
-
-#: The series the controller predicts: D0, the one-step energy change at α = 0, and S = dH/dα.
-_PREDICTED_SERIES = ("d0", "slope")
-#: Each series' last two values and its exponentially weighted normal equations.
-_PREDICTOR_STATE = tuple(
-    f"{series}_{part}"
-    for series in _PREDICTED_SERIES
-    for part in ("lag1", "lag2", "g11", "g12", "g22", "b1", "b2")
-) + ("fit_d0_slope", "fit_slope_slope")
-
-
-def _ar2_prediction(series: str) -> str:
-    """Expression of the next value of ``series`` by its ridge-regularised AR(2) fit."""
-    return (
-        f"a1*{series}_lag1 + a2*{series}_lag2;"
-        f"a1 = ((g22 + ridge)*{series}_b1 - {series}_g12*{series}_b2)/det;"
-        f"a2 = ((g11 + ridge)*{series}_b2 - {series}_g12*{series}_b1)/det;"
-        f"det = max((g11 + ridge)*(g22 + ridge) - {series}_g12^2, 1e-300);"
-        "ridge = 0.005*(g11 + g22);"
-        f"g11 = {series}_g11; g22 = {series}_g22"
-    )
 
 
 class AlphaRattleIntegrator(_StepProgram):
@@ -270,8 +182,9 @@ class AlphaRattleIntegrator(_StepProgram):
         order, chosen = _order_and_composition(order, composition, alpha_stages)
         if chosen is not None and _is_energy_mode(alpha) and len(chosen.alpha_stages) != 1:
             raise InputError(
-                f"the energy mode takes alpha on one stage of a composition, got stages {chosen.alpha_stages} "
-                f"of {chosen.name!r}; use alpha_stages='middle' or one stage number, or a fixed alpha."
+                "the energy mode takes alpha on one stage of a composition, got stages "
+                f"{chosen.alpha_stages} of {chosen.name!r}; use alpha_stages='middle' or one stage "
+                "number, or a fixed alpha."
             )
         self._composition = chosen
         controls = 2 if chosen is None else 4  # the controller's defaults: one step, or a composition
@@ -323,6 +236,8 @@ class AlphaRattleIntegrator(_StepProgram):
         """``alpha="energy"`` makes an :class:`AlphaRattleEnergyIntegrator`."""
         alpha = args[1] if len(args) > 1 else kwargs.get("alpha", 0.0)
         if cls is AlphaRattleIntegrator and _is_energy_mode(alpha):  # type: ignore[arg-type]
+            from .energy_mode import AlphaRattleEnergyIntegrator
+
             cls = AlphaRattleEnergyIntegrator
         return super().__new__(cls)
 
@@ -362,7 +277,7 @@ class AlphaRattleIntegrator(_StepProgram):
         self._add_midpoint_end_step()
 
     def _build_composition_program(self) -> None:
-        """A composition with fixed α: its RATTLE stages before the first α stage, then a loop over the rest.
+        """Build a composition with fixed α: its stages before the first α stage, then a loop over the rest.
 
         For the triple jump: RATTLE (γ1 h), then the loop over α-RATTLE (γ2 h) and
         RATTLE (γ1 h). Every stage after the first α stage is inside the loop, before
@@ -417,7 +332,8 @@ class AlphaRattleIntegrator(_StepProgram):
                 f"this system: {count} particle(s) have zero mass (virtual sites). "
                 "α ≠ 0 takes a force at the unconstrained midpoint of the step, where no OpenMM "
                 "platform places virtual sites. With virtual sites use alpha=0 (RATTLE, or order=4 for "
-                "a fourth-order composition of RATTLE steps) on CUDA, OpenCL or HIP after integrator.check_context(context), or "
+                "a fourth-order composition of RATTLE steps) on CUDA, OpenCL or HIP after "
+                "integrator.check_context(context), or "
                 "openmm.VerletIntegrator."
             )
         return super()._massless_refusal(count, platform)
@@ -492,702 +408,20 @@ class AlphaRattleIntegrator(_StepProgram):
         return f"{type(self).__name__}(timestep={self.timestep}, alpha={alpha}{extra})"
 
     def __getattr__(self, name: str) -> object:
-        if name in _ENERGY_MODE_ONLY:
+        if name in _energy_mode_only_names():
             raise AttributeError(_energy_mode_only(name))
         raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
 
     def __setattr__(self, name: str, value: object) -> None:
-        if name in _ENERGY_MODE_ONLY and not self.energy_mode:
+        if name in _energy_mode_only_names() and not self.energy_mode:
             raise AttributeError(_energy_mode_only(name))
         super().__setattr__(name, value)
-
-
-class AlphaRattleEnergyIntegrator(_ReferenceEnergy, AlphaRattleIntegrator):
-    """α-RATTLE's energy-preserving mode: α chosen every step so that H stays at E_ref.
-
-    Made by ``AlphaRattleIntegrator(timestep, alpha="energy", ...)`` (the parameters
-    are documented there); this class adds what the mode has and a fixed α has not:
-    E_ref (taken and reset by the rule of :mod:`~.reference_energy`), H − E_ref, the
-    tolerance, the α bounds and the totals of the run. The controller is described in
-    the module's docstring.
-    """
-
-    energy_mode: ClassVar[bool] = True
-
-    def _add_program(self, settings: ControllerSettings | None) -> None:
-        """Add the controller's variables and the energy-mode program (NVE: no update step)."""
-        composed = self._composition is not None
-        self._add_energy_mode_variables(settings, composed)
-        build = self._build_energy_program if not composed else self._build_composition_energy_program
-        self._add_step(build, update_context_state=False)
-
-    def _add_energy_mode_variables(self, settings: ControllerSettings, composed: bool) -> None:
-        """Declare the controller's settings and state (after :meth:`_add_midpoint_variables`)."""
-        low, high = settings.alpha_bounds
-        self._add_reference_energy_variables(settings.energy_tolerance)
-        for name, value in (
-            ("alpha_min", low),
-            ("alpha_max", high),
-            ("max_trials", settings.max_trials),
-            ("max_alpha_change", settings.max_alpha_change),
-            ("alpha_probe", settings.alpha_probe),
-            ("slope_damping", settings.slope_damping),
-            ("trust", settings.max_alpha_change),  # the move limit; adapted at order 4 only
-            ("predictor_forgetting", PREDICTOR_FORGETTING),
-            ("predictor_warmup", PREDICTOR_WARMUP if settings.predict else 1e30),
-        ):
-            self.addGlobalVariable(name, value)
-        for name in (
-            "retry",
-            RESIDUAL,
-            "residual_last",
-            "alpha_last",
-            "alpha_next",
-            "alpha_start",
-            SLOPE,
-            SLOPE_SCALE,
-            "slope_measured",
-            TRIALS,
-            "last_move",
-            "controller_done",
-            "restarting",
-            "completing",
-            FELL_BACK,
-            ALPHA_AT_BOUND,
-            "steps_within_tolerance",
-            "steps_fallen_back",
-            "steps_at_bound",
-            "predictor_valid",
-            "sum_residual_squared",
-            "max_abs_residual",
-            "start_residual",
-            "first_residual",
-            "first_alpha",
-            PREDICTED_D0,
-            PREDICTED_SLOPE,
-            "use_prediction",
-            "predictor_steps",
-            "alpha_typical",
-            "slope_authority",
-            "probe_size",
-            *_PREDICTOR_STATE,
-        ):
-            self.addGlobalVariable(name, 0)
-        if composed:
-            best_trial = ("trial_better", "best_set", "residual_best", "alpha_best", "restored_best")
-            short_trial = (
-                "virtual_trial",
-                "trial_ready",
-                "full_trial",
-                "substep_energy",
-                "middle_end_energy",
-                "last_substep_change",
-                "sum_sensitivity2",
-                "x1_sensitivity",
-                "stale_midpoint_change",
-                "reuse_midpoint",
-                "midpoints_reused",
-                "short_residual",
-                "alpha_full",
-                "paired",
-                "residual_full",
-                "last_substep_fit_cross",
-                "last_substep_fit_norm",
-                "last_substep_slope",
-                "short_trials_completed",
-                "sum_short_error_squared",
-            )
-            for name in (*best_trial, *short_trial, "steps_restored"):
-                self.addGlobalVariable(name, 0)
-            self.addGlobalVariable("short_trials", 1)
-        # 0: the user chose it
-        self.addGlobalVariable("midpoint_tolerance_automatic", float(settings.automatic_midpoint_tolerance))
-        for name in ("fmid_last",) + (
-            ("xa", "va", "fa", "fstart_last", "xbest", "vbest") if composed else ()
-        ):
-            self.addPerDofVariable(name, 0)
-
-    # ---------------------------------------------------------------- programs
-    def _build_energy_program(self) -> None:
-        """Order 2: one loop over trials; a trial ends with its velocity update and residual."""
-        self._add_save_step_start(fstart="f")
-        self._add_reference_check(self._predictor_resets())
-        # F(x_m) predicted by linear extrapolation in time from the previous step's midpoint force
-        self.addComputePerDof("fmid", "select(predictor_valid, 2*fstart - fmid_last, fstart)")
-        self._add_midpoint_setup("1")
-        self._add_controller_start()
-        self.addComputeGlobal("solving", "1")
-        self.beginWhileBlock("solving > 0.5")
-        self._add_position_solve(first_forces("alpha"), "dt", fallback="x0")
-        self.beginIfBlock("need_midpoint < 0.5")
-        self._add_velocity_update(last_forces("alpha"), "dt", fallback="v0")
-        self._add_trial_end(next_start={})
-        self.addComputeGlobal("solving", "restarting")
-        self.endBlock()
-        self.beginIfBlock("need_midpoint > 0.5")
-        self._add_trial_midpoint_force("dt", "alpha")
-        self.endBlock()
-        self.endBlock()
-        self._add_controller_bookkeeping()
-        self._add_midpoint_end_step()
-
-    def _build_composition_energy_program(self) -> None:
-        """A composition: the RATTLE stages before the α stage once, then a loop over trials of the rest.
-
-        The step's first trial takes the α stage (for the triple jump the middle
-        sub-step, γ2 h) and the RATTLE stages after it (the last sub-step): for the
-        triple jump three force evaluations (midpoint, middle end, last end).
-        After the predictor's warm-up a later trial is *short*: it redoes the middle
-        sub-step only, keeping the last midpoint force where that is within
-        ``midpoint_tolerance`` (one evaluation), and predicts the rest
-        (:meth:`_add_substep_energy`); once α stops, the last sub-step is taken at
-        that α (one evaluation) and measures the residual the step ends with.
-        """
-        # F(x0) is read before the reference check's energy: see _add_reference_check
-        self._add_save_step_start(xstep="x", vstep="v", fstart="f")
-        self._add_reference_check(self._predictor_resets())
-        # the projection of the first sub-step must start from this state, which may be
-        # an earlier trial's (``_add_best_trial_restore``): constrain it once (a no-op on
-        # positions that satisfy the constraints) so that Reference/CPU project along it;
-        # placed before every position assignment in program text, it leaves the common
-        # platform's delta storage of positions as it was (§5a)
-        self.addConstrainPositions()
-        composition = self._composition
-        self._add_leading_substeps(composition)
-        self._add_controller_start()
-        # the midpoint force's offset from the sub-step's start force changes little between steps
-        self._add_alpha_substeps_start(
-            composition,
-            "1",
-            xa="x",
-            va="v",
-            fa="f",
-            fmid="f + select(predictor_valid, fmid_last - fstart_last, 0)",
-            fstart_last="f",
-        )
-        self.addComputeGlobal("virtual_trial", "0")
-        self.addComputeGlobal("completing", "0")
-        self.addComputeGlobal("trial_ready", "0")
-        self._add_composition_loop(
-            composition,
-            self._add_order4_trial_midpoint_force,
-            trial_end=self._add_order4_trial_end,
-            substep_end=self._add_substep_energy,
-        )
-        self._add_best_trial_restore()
-        self._add_controller_bookkeeping()
-        self._add_trust_update()
-        self._add_midpoint_end_step()
-
-    def _add_substep_energy(self) -> None:
-        """H at the end of a sub-step; after the middle one, whether the trial ends there.
-
-        A short trial ends after the middle sub-step. Its residual is H there plus
-        the last sub-step's energy change ΔE_last measured by the step's latest full
-        trial (at α_f), corrected by c (α − α_f) (:meth:`_add_last_substep_fit`):
-        a new α changes the middle sub-step's end velocities by h Δα (F(x_m) −
-        F(x2))/m, about 1 % of thermal velocities, and ΔE_last follows. Once α stops,
-        the last sub-step is taken at that α (the trial is *completed*) and its
-        measured residual decides: within tolerance, or out of trials, the step ends;
-        else another short trial starts from it.
-        """
-        self._add_sum("kinetic_energy", "0.5*m*v*v")
-        self.addComputeGlobal("substep_energy", "energy + kinetic_energy")
-        after_alpha, ended = self._composition.first_alpha_stage + 1, self._composition.stages
-        self.addComputeGlobal(
-            "middle_end_energy", f"select(delta(phase - {after_alpha}), substep_energy, middle_end_energy)"
-        )
-        self.addComputeGlobal(
-            "trial_ready", f"max(step(phase - {ended}.5), delta(phase - {after_alpha})*virtual_trial)"
-        )
-
-    def _add_last_substep_fit(self) -> None:
-        """Fit c = d(ΔE_last)/dα, how the last sub-step's energy change follows α.
-
-        A short trial at α predicts the last sub-step's energy change as the one
-        measured at the latest full trial's α_f plus c (α − α_f). Every full trial
-        that follows another in its step (a completed short trial, and during the
-        predictor's warm-up, when every trial is full) measures the change over
-        Δα = α − α_f; c is the weighted least-squares slope of these pairs, with the
-        predictor's forgetting factor, kept across steps (measured: c ≈ 0.3 kJ/mol per
-        unit α on a 774-atom water box, ≈ 110 on villin, steady along a run).
-        """
-        change = "(substep_energy - middle_end_energy - last_substep_change)"
-        moved = "(alpha - alpha_full)"
-        lam = "predictor_forgetting"
-        self.addComputeGlobal("paired", "full_trial*step(trials - 0.5)")
-        for name, term in (("cross", f"{change}*{moved}"), ("norm", f"{moved}^2")):
-            fit = f"last_substep_fit_{name}"
-            self.addComputeGlobal(fit, f"select(paired, {lam}*{fit} + {term}, {fit})")
-        self.addComputeGlobal(
-            "last_substep_slope",
-            "select(last_substep_fit_norm, last_substep_fit_cross/last_substep_fit_norm, 0)",
-        )
-
-    def _add_order4_trial_midpoint_force(self, h: str, alpha: str) -> None:
-        """Take the trial's midpoint pass and dx1/dα = h² (F(x_m) − F0)/m (RMS per DOF) for the next."""
-        self._add_trial_midpoint_force(h, alpha)
-        self._add_sum("sum_sensitivity2", f"({h}*{h}*(fmid - fstart)/m)^2")
-        self.addComputeGlobal("x1_sensitivity", "sqrt(sum_sensitivity2/max(ndof, 1))")
-
-    def _add_order4_trial_end(self) -> None:
-        """End a trial: after the last sub-step, or after the middle one for a short trial.
-
-        A new trial restarts the middle sub-step. It keeps the last midpoint force
-        where the change it makes to the solve stays below ``midpoint_tolerance``:
-        the new α moves x1 by |Δα| dx1/dα, the midpoint by half that, and the
-        midpoint force by at most ω² times it, (hω)² < 4 on a stable sub-step, so the
-        stale force changes x1 by less than 2 |α| |Δα| dx1/dα, added to the change
-        the last midpoint force made (``midpoint_change``).
-        """
-        self.addComputeGlobal("full_trial", f"step(phase - {self._composition.stages}.5)")
-        self._add_last_substep_fit()
-        self.addComputeGlobal(
-            "last_substep_change",
-            "select(full_trial, substep_energy - middle_end_energy, last_substep_change)",
-        )
-        self.addComputeGlobal("short_residual", "residual")
-        # a completed short trial measures the slope against the latest full trial: both measured
-        self.addComputeGlobal("residual_last", "select(completing, residual_full, residual_last)")
-        self.addComputeGlobal("alpha_last", "select(completing, alpha_full, alpha_last)")
-        self._add_trial_end(
-            next_start={"x0": "xa", "v0": "va", "fstart": "fa"},
-            residual="substep_energy - reference_energy"
-            " + (1 - full_trial)*(last_substep_change + last_substep_slope*(alpha - alpha_full))",
-        )
-        self.addComputeGlobal("alpha_full", "select(full_trial, alpha_last, alpha_full)")
-        self.addComputeGlobal("residual_full", "select(full_trial, residual, residual_full)")
-        # a completed short trial: how far its predicted residual was from the measured one
-        self.addComputeGlobal("short_trials_completed", "short_trials_completed + completing")
-        self.addComputeGlobal(
-            "sum_short_error_squared", "sum_short_error_squared + completing*(residual - short_residual)^2"
-        )
-        self._add_best_trial_record()
-        self.addComputeGlobal("completing", "(1 - full_trial)*(1 - restarting)")
-        self.addComputeGlobal(
-            "stale_midpoint_change", "2*abs(alpha*(alpha - alpha_last))*x1_sensitivity*restarting"
-        )
-        self.addComputeGlobal(
-            "reuse_midpoint",
-            "restarting*short_trials*use_prediction"
-            "*step(midpoint_tolerance - midpoint_change - stale_midpoint_change)",
-        )
-        self.addComputeGlobal("need_midpoint", "restarting*(1 - reuse_midpoint)")
-        self.addComputeGlobal("midpoint_change", "midpoint_change + reuse_midpoint*stale_midpoint_change")
-        self.addComputeGlobal("midpoints_reused", "midpoints_reused + reuse_midpoint")
-        self.addComputeGlobal("virtual_trial", "restarting*short_trials*use_prediction*(1 - midpoint_failed)")
-        self.addComputeGlobal("trial_ready", "0")
-        first = self._composition.first_alpha_stage
-        self.addComputeGlobal("phase", f"select(restarting, {first}, phase)")
-        self.addComputeGlobal("hsub", f"select(restarting, {_substep_h(self._composition, first)}, hsub)")
-        self.addComputeGlobal("alpha_sub", "alpha*restarting")
-
-    def _add_best_trial_record(self) -> None:
-        """Keep the end state of the step's trial with the smallest |H − E_ref| so far (order 4).
-
-        Only a trial whose midpoint had converged (its last midpoint force changed x1
-        by less than ``midpoint_tolerance``) is a step of the method and may be kept.
-        ``x`` and ``v`` still hold the trial's end here (a restart only reset ``x0``,
-        ``v0``); ``alpha_last`` is the trial's α.
-        """
-        self.addComputeGlobal(
-            "trial_better",
-            "candidate*max(1 - kept, 1 - step(abs(residual) - abs(residual_best)));"
-            "kept = best_set*(1 - delta(trials - 1));"
-            "candidate = full_trial*step(midpoint_tolerance - midpoint_change)",
-        )
-        self.addComputeGlobal("best_set", "max(best_set*(1 - delta(trials - 1)), trial_better)")
-        self.addComputeGlobal("residual_best", "select(trial_better, residual, residual_best)")
-        self.addComputeGlobal("alpha_best", "select(trial_better, alpha_last, alpha_best)")
-        self.addComputePerDof("xbest", "select(trial_better, x, xbest)")
-        self.addComputePerDof("vbest", "select(trial_better, v, vbest)")
-
-    def _add_best_trial_restore(self) -> None:
-        """End the step in its best trial's state where the last trial missed the tolerance and did worse.
-
-        A later trial can end farther from E_ref than an earlier one (a secant over a
-        slope that changed sign within the step, or one measured below the energy
-        noise); the step then keeps the earlier trial's x, v and α. The force at the
-        restored positions is computed again at the next step's start: one more
-        force evaluation, counted here. No constraint step follows the restore: on the
-        common platform any ``addConstrainPositions`` after the midpoint assignment in
-        program text would make that assignment a stored displacement, unseen by the
-        midpoint force (§5a); the next step constrains its start state instead.
-        """
-        self.addComputeGlobal(
-            "restored_best",
-            "(1 - midpoint_failed)*best_set*step(abs(residual) - energy_tolerance)"
-            "*(1 - step(abs(residual_best) - abs(residual)))",
-        )
-        self.addComputePerDof("x", "select(restored_best, xbest, x)")
-        self.addComputePerDof("v", "select(restored_best, vbest, v)")
-        self.addComputePerDof("xend", "x")
-        self.addComputePerDof("vend", "v")
-        self.addComputeGlobal("residual", "select(restored_best, residual_best, residual)")
-        self.addComputeGlobal("alpha", "select(restored_best, alpha_best, alpha)")
-        self.addComputeGlobal("end_energy", "residual + reference_energy")
-        self.addComputeGlobal("step_force_evaluations", "step_force_evaluations + restored_best")
-        self.addComputeGlobal("steps_restored", "steps_restored + restored_best")
-
-    # ------------------------------------------------------------------ pieces
-    def _predictor_resets(self) -> tuple[tuple[str, str], ...]:
-        """Forget the predictor when E_ref is taken again (``on_retake`` of the reference check)."""
-        return (
-            *((name, f"{name}*(1 - retake)") for name in ("predictor_steps", *_PREDICTOR_STATE)),
-            ("predictor_valid", "predictor_valid*(1 - retake)"),
-            ("slope", "select(retake, 0, slope)"),
-        )
-
-    def _add_controller_start(self) -> None:
-        """Reset the per-step controller state; the first trial uses the last step's α*."""
-        self.addComputeGlobal("alpha_start", "alpha")
-        self.addComputeGlobal("alpha", "min(max(alpha, alpha_min), alpha_max)")
-        for name in ("trials", "slope_measured", "controller_done", "restarting"):
-            self.addComputeGlobal(name, "0")
-        self._add_alpha_prediction()
-
-    def _add_alpha_prediction(self) -> None:
-        """Predict the first trial's α from the step's predicted D0 and S (after the warm-up).
-
-        H − E_ref after a step taken with α is, to first order in α,
-        r = r_start + D0 + α S: r_start the residual the step starts with, D0 the
-        step's energy change at α = 0, S = dH/dα. Both D0 and S oscillate smoothly
-        from step to step; each is predicted by an AR(2) model, x_n ≈ a1 x_{n−1} + a2
-        x_{n−2}, fitted by exponentially weighted least squares (forgetting factor
-        ``predictor_forgetting``, a ridge of 1 % of the mean diagonal) over the
-        steps so far.
-
-        The same weights give ᾱ = −Σλ D0 S / Σλ S² (``alpha_typical``), the fixed α
-        that would have held the energy best over past steps, and the typical slope
-        S_typ = (Σ(1−λ)λ S²)^½ (``slope_authority``). The first trial takes the
-        Newton step from ᾱ, α = ᾱ − (r_start + D0 + ᾱ S) S / (S² + (d S_typ)²), within
-        ``trust`` of ᾱ and the bounds: where the predicted S is small the damping
-        keeps α near ᾱ rather than pulling it to 0. The probe size of the step is
-        min(``alpha_probe``, trust, 2·tolerance/S_typ): a move that changes the energy
-        by about twice the tolerance is enough to measure S. The second trial (if
-        any) starts from the predicted slope. Before ``predictor_warmup`` steps with
-        a measured S the first trial keeps the last α* and the probe is ``alpha_probe``
-        (limited by trust).
-        """
-        self.addComputeGlobal("start_residual", "end_energy - reference_energy")
-        for series, variable in zip(_PREDICTED_SERIES, (PREDICTED_D0, PREDICTED_SLOPE)):
-            self.addComputeGlobal(variable, _ar2_prediction(series))
-        self.addComputeGlobal("use_prediction", "step(predictor_steps - predictor_warmup + 0.5)")
-        self.addComputeGlobal(
-            "alpha_typical", "select(fit_slope_slope, -fit_d0_slope/fit_slope_slope, alpha_start)"
-        )
-        self.addComputeGlobal("slope_authority", "sqrt((1 - predictor_forgetting)*fit_slope_slope)")
-        self.addComputeGlobal(
-            "probe_size",
-            "min(min(alpha_probe, trust), select(use_prediction, sized, alpha_probe));"
-            "sized = max(2*energy_tolerance/(slope_authority + 1e-30), 1e-6)",
-        )
-        self.addComputeGlobal(
-            "alpha",
-            "select(use_prediction, min(max(limited, alpha_min), alpha_max), alpha);"
-            "limited = min(max(centred, alpha_typical - trust), alpha_typical + trust);"
-            "centred = alpha_typical - (start_residual + predicted_d0 + alpha_typical*predicted_slope)"
-            "*predicted_slope/(predicted_slope^2 + (slope_damping*slope_authority)^2 + 1e-30)",
-        )
-        self.addComputeGlobal("slope", "select(use_prediction, predicted_slope, slope)")
-        self.addComputeGlobal("first_alpha", "alpha")
-
-    def _add_trial_midpoint_force(self, h: str, alpha: str) -> None:
-        """One pass of the midpoint block: the controller converges the midpoint along with α.
-
-        Like :meth:`~.pieces._StepProgram._add_midpoint_force` but without its
-        stopping test (``need_midpoint`` = 0 after one force); and when ``restarting``
-        is set (a new trial of α), x1 is first solved again from x0 with the new α and
-        the previous midpoint force.
-        """
-        self._add_midpoint_reference()
-        self.addComputePerDof("x", f"select(restarting, x0 + {h}*v0 + {h}*{h}*({first_forces(alpha)})/m, x0)")
-        self.addConstrainPositions()
-        self.addComputePerDof("x1", "select(restarting, x, x1)")
-        self.addComputeGlobal("restarting", "0")
-        self.addComputePerDof("x", "x0")  # the reference of the next solve again (Reference/CPU)
-        self.addConstrainPositions()
-        self._add_midpoint_evaluation(h, alpha)
-        self.addComputeGlobal("need_midpoint", "0")
-
-    def _add_trial_end(self, next_start: dict[str, str], residual: str | None = None) -> None:
-        """Residual of the trial, the next α, and either the end of the step or a new trial.
-
-        ``residual``: its expression where the caller measured the energy (order 4),
-        else H − E_ref at the current state. A new trial restarts the α sub-step from
-        ``next_start`` (the state after the first sub-step at order 4) and goes to its
-        midpoint block, which solves x1 with the new α before taking the midpoint force.
-        """
-        if residual is None:
-            self._add_sum("kinetic_energy", "0.5*m*v*v")
-            residual = "energy + kinetic_energy - reference_energy"
-        self.addComputeGlobal("residual", residual)
-        self.addComputeGlobal("trials", "trials + 1 - completing")
-        self.addComputeGlobal("first_residual", "select(delta(trials - 1), residual, first_residual)")
-        self._add_alpha_update()
-        # a midpoint that ran away: one more pass without a midpoint force falls back to the start
-        self.addComputeGlobal(
-            "retry",
-            "controller_done*(1 - midpoint_failed)*(1 - step(accepted - midpoint_change));"
-            + ACCEPTED_MIDPOINT_CHANGE,
-        )
-        self.addComputeGlobal("midpoint_failed", "max(midpoint_failed, retry)")
-        self.addComputeGlobal("restarting", "1 - controller_done + retry")
-        self.addComputeGlobal("alpha", "select(restarting, alpha_next, alpha)")
-        self.addComputeGlobal("need_midpoint", "restarting")
-        self.addComputeGlobal("previous_midpoint_change", "1e30")
-        self._add_end_state_record("residual + reference_energy")
-        self.addComputePerDof("fmid_last", "fmid")
-        for variable, expression in next_start.items():
-            self.addComputePerDof(variable, f"select(restarting, {expression}, {variable})")
-
-    def _add_alpha_update(self) -> None:
-        """Secant step on r(α) with the in-step slope; bounded; decide whether to stop.
-
-        Written with ``select``/``step`` so that no division by a vanishing slope
-        can reach α: the Newton step is −r S/(S² + (d s)²), then limited and clipped.
-        The damping scale s is S̄ (``slope_scale``) once the step measured its own
-        slope or before the predictor's warm-up, else the typical slope of past steps
-        (``slope_authority``) for a move made with the predicted S. A secant counts
-        as a measurement when α moved by at least half the step's probe size.
-        """
-        secant = "step(trials - 1.5)*step(abs(alpha - alpha_last) - 0.5*probe_size)"
-        self.addComputeGlobal(
-            "slope",
-            "select(new_secant, (residual - residual_last)/(alpha - alpha_last), slope);"
-            f"new_secant = {secant}",
-        )
-        self.addComputeGlobal("slope_measured", f"max(slope_measured, {secant})")
-        self.addComputeGlobal("residual_last", "residual")
-        self.addComputeGlobal("alpha_last", "alpha")
-        self.addComputeGlobal(
-            "alpha_next",
-            "select(frozen, alpha, min(max(moved, alpha_min), alpha_max));"
-            "frozen = max(step(energy_tolerance - abs(residual)), step(trials - trial_cap + 0.5));"
-            f"trial_cap = {self._trial_cap()};"
-            "moved = select(slope_measured + 1 - delta(clipped - alpha), clipped, inwards);"
-            "inwards = alpha - outward*probe;"
-            "outward = 2*step(change) - 1;"
-            "clipped = min(max(alpha + change, alpha_min), alpha_max);"
-            "change = select(slope_measured, limited, select(limited, probe_sized, probe));"
-            "probe_sized = (2*step(limited) - 1)*max(abs(limited), probe);"
-            "probe = probe_size;"
-            "limited = min(max(newton, -trust), trust);"
-            "newton = -residual*slope/(slope*slope + (slope_damping*scale)^2 + 1e-30);"
-            "scale = select(slope_measured + 1 - use_prediction, slope_scale, slope_authority)",
-        )
-        self.addComputeGlobal(
-            "controller_done",
-            "max(max(stays*step(midpoint_tolerance - midpoint_change), capped),"
-            " max(not_finite, midpoint_failed));"
-            "not_finite = 1 - step(1e30 - abs(residual));"
-            "capped = step(midpoint_iterations - max_midpoint_iterations + 0.5);"
-            "stays = 1 - step(abs(alpha_next - alpha) - 1e-12)",
-        )
-
-    def _trial_cap(self) -> str:
-        """Return the cap on a step's trials: ``max_trials``; at order 4 at most 3 during the warm-up.
-
-        During the predictor's warm-up every trial is full and a step starts at the last
-        step's α*, so a step that carried α far passes it on to the next; a fourth trial
-        let it reach a bound (docs/energy_mode.md, "Short trials").
-        """
-        if self.order != 2:
-            return "select(use_prediction, max_trials, min(max_trials, 3))"
-        return "max_trials"
-
-    def _add_controller_bookkeeping(self) -> None:
-        """Per-step diagnostics and totals."""
-        self.addComputeGlobal("alpha", "select(midpoint_failed, alpha_start, alpha)")
-        self.addComputeGlobal(
-            "fell_back", "(1 - midpoint_failed)*(1 - step(energy_tolerance - abs(residual)))"
-        )
-        self.addComputeGlobal(
-            "alpha_at_bound", "(1 - midpoint_failed)*max(delta(alpha - alpha_min), delta(alpha - alpha_max))"
-        )
-        self.addComputeGlobal(
-            "steps_within_tolerance", "steps_within_tolerance + (1 - midpoint_failed - fell_back)"
-        )
-        self.addComputeGlobal("steps_fallen_back", "steps_fallen_back + fell_back")
-        self.addComputeGlobal("steps_at_bound", "steps_at_bound + alpha_at_bound")
-        # every step's H − E_ref, for the run's RMS and maximum without reading the state each step
-        self.addComputeGlobal("sum_residual_squared", "sum_residual_squared + residual^2")
-        self.addComputeGlobal("max_abs_residual", "max(max_abs_residual, abs(residual))")
-        self._add_slope_scale_update()
-        self._add_predictor_update()
-        self.addComputeGlobal("predictor_valid", "1 - midpoint_failed")
-
-    def _add_predictor_update(self) -> None:
-        """Add the step's D0 and S to the AR(2) fits (not after a rejected step).
-
-        S is the in-step secant slope when the step took a second trial, else the
-        slope the step assumed (the prediction; during the warm-up the last
-        measured one); D0 = r₁ − r_start − α₁ S from the first trial's residual r₁.
-        The weighted sums Σλ D0 S and Σλ S² (the fit of ᾱ) are updated with the same
-        weights.
-        """
-        self.addComputeGlobal(
-            "predictor_steps", "predictor_steps + (1 - midpoint_failed)*max(slope_measured, use_prediction)"
-        )
-        observed = {"d0": "first_residual - start_residual - first_alpha*slope", "slope": "slope"}
-        lam = "predictor_forgetting"
-        for series in _PREDICTED_SERIES:
-            x = f"({observed[series]})"
-            lag1, lag2 = f"{series}_lag1", f"{series}_lag2"
-            for part, term in (
-                ("g11", f"{lag1}*{lag1}"),
-                ("g12", f"{lag1}*{lag2}"),
-                ("g22", f"{lag2}*{lag2}"),
-                ("b1", f"{lag1}*{x}"),
-                ("b2", f"{lag2}*{x}"),
-            ):
-                name = f"{series}_{part}"
-                self.addComputeGlobal(name, f"select(midpoint_failed, {name}, {lam}*{name} + {term})")
-            self.addComputeGlobal(lag2, f"select(midpoint_failed, {lag2}, {lag1})")
-            self.addComputeGlobal(lag1, f"select(midpoint_failed, {lag1}, {x})")
-        for name, term in (("fit_d0_slope", "d0_lag1*slope_lag1"), ("fit_slope_slope", "slope_lag1^2")):
-            self.addComputeGlobal(name, f"select(midpoint_failed, {name}, {lam}*{name} + {term})")
-
-    def _add_slope_scale_update(self) -> None:
-        """S̄, the damping scale: a running geometric mean of the in-step slopes |S|.
-
-        One measured |S| moves S̄ by at most ×10^0.2 up and ×10^-0.6 down, so that
-        a secant over a noise-sized move of α cannot inflate S̄ (an inflated S̄ damps
-        every Newton step to nothing: the *dead controller*, S̄ ≈ 6e8 kJ/mol measured on
-        water and villin at order 2 before this rule) and an inflated S̄ is back within
-        about a dozen steps.
-        """
-        self.addComputeGlobal(
-            "slope_scale",
-            "select(slope_measured, select(slope_scale, running, max(abs(slope), 1e-12)), slope_scale);"
-            "running = exp(0.8*log(slope_scale) + 0.2*log(bounded));"
-            "bounded = min(max(abs(slope), 1e-3*slope_scale), 10*slope_scale)",
-        )
-
-    def _add_trust_update(self) -> None:
-        """Halve the per-trial move limit when α swings back and forth by a full limit and misses.
-
-        A step that moved α by more than the limit, opposite to the previous step's
-        move of more than the limit, and still missed E_ref is the signature of a
-        controller that cannot reach E_ref (a residual beyond α's authority, or a slope
-        that changes sign across the move):
-        at order 4 on villin it ran into a limit cycle, α swinging between ±0.05 each
-        step for 500 steps while H − E_ref grew to 18 kJ/mol. A step within tolerance
-        grows the limit again by ×1.5, up to ``max_alpha_change``; it never drops below
-        a quarter of ``alpha_probe``. Order 4 only: at order 2 it made the water box
-        drift (CUDA mixed, 10 ps: RMS 6.8 against 0.47 kJ/mol without it), so there the
-        limit stays ``max_alpha_change``.
-        """
-        self.addComputeGlobal(
-            "trust",
-            "select(missed_far, max(0.5*trust, 0.25*alpha_probe), select(fell_back, trust, grown));"
-            "grown = min(1.5*trust, max_alpha_change);"
-            "missed_far = fell_back*far*step(-move*last_move);"
-            "far = step(abs(move) - trust)*step(abs(last_move) - trust);"
-            "move = alpha - alpha_start",
-        )
-        self.addComputeGlobal("last_move", "alpha - alpha_start")
-
-    # ---------------------------------------------------------------- what the user sets and reads
-    def _set_system_defaults(self, periodic: bool) -> None:
-        """Set the midpoint tolerance for the system's box, unless the user chose one.
-
-        With a periodic box angular momentum is not conserved by any integrator and the
-        order's default stands. Without one (a cluster or molecule in vacuum) the
-        midpoint is iterated to :data:`NON_PERIODIC_MIDPOINT_TOLERANCE`, which keeps
-        angular momentum to round-off, at more midpoint forces per step.
-        """
-        if not periodic and self.getGlobalVariableByName("midpoint_tolerance_automatic"):
-            self.setGlobalVariableByName("midpoint_tolerance", NON_PERIODIC_MIDPOINT_TOLERANCE)
-
-    @property
-    def energy_residual(self) -> unit.Quantity:
-        """H − E_ref after the last step (total energy with on-step velocities)."""
-        return self.getGlobalVariableByName(RESIDUAL) * unit.kilojoules_per_mole
-
-    @property
-    def alpha_bounds(self) -> tuple[float, float]:
-        """The interval α* is kept in."""
-        return (self.getGlobalVariableByName("alpha_min"), self.getGlobalVariableByName("alpha_max"))
-
-    @alpha_bounds.setter
-    def alpha_bounds(self, bounds: tuple[float, float]) -> None:
-        low, high = check_alpha_bounds(bounds)
-        self.setGlobalVariableByName("alpha_min", low)
-        self.setGlobalVariableByName("alpha_max", high)
-
-    @property
-    def fell_back(self) -> bool:
-        """Whether the last step ended outside the energy tolerance (α at a bound or trial cap)."""
-        return bool(self.getGlobalVariableByName(FELL_BACK))
-
-    @property
-    def trials(self) -> int:
-        """Trials of α in the last step.
-
-        Order 2: a midpoint and an end force each (more where the midpoint needs them).
-        Order 4: the first takes three force evaluations, a short one one; taking the last
-        sub-step once α stopped (one more) is not counted as a trial.
-        """
-        return int(self.getGlobalVariableByName(TRIALS))
-
-    def controller_totals(self) -> dict[str, float]:
-        """Totals over every step since the integrator was created.
-
-        Returns
-        -------
-        A dict with ``steps``, ``steps_within_tolerance``, ``steps_fallen_back``,
-        ``steps_at_bound``, ``reference_resets``, ``steps_restored`` (order 4: steps
-        that ended in an earlier trial's state, see ``_add_best_trial_restore``; 0 at
-        order 2) (counts), the fractions
-        ``fraction_within_tolerance`` and ``fraction_fallen_back``,
-        ``force_evaluations_per_step``, and ``rms_residual`` and ``max_abs_residual``:
-        RMS and maximum of H − E_ref after each step (kJ/mol; NaN before the first step),
-        accumulated inside the step program, so that a reporter need not read the state
-        every step. Order 4 adds the short trials (see ``_add_substep_energy``):
-        ``short_trials_completed``, ``midpoints_reused`` (trials that kept the last
-        midpoint force) and ``rms_short_trial_error``, the RMS difference between a
-        completed short trial's predicted and measured residual (kJ/mol; NaN before the
-        first); at order 2 the counts are 0.
-        """
-        steps = self.steps_taken
-        totals = {
-            name: int(self.getGlobalVariableByName(name))
-            for name in ("steps_within_tolerance", "steps_fallen_back", "steps_at_bound", "reference_resets")
-        }
-        restored = self.getGlobalVariableByName("steps_restored") if self.order != 2 else 0
-        totals["steps_restored"] = int(restored)
-        for name in ("short_trials_completed", "midpoints_reused"):
-            totals[name] = int(self.getGlobalVariableByName(name)) if self.order != 2 else 0
-        completed = totals["short_trials_completed"]
-        short_error = (
-            (self.getGlobalVariableByName("sum_short_error_squared") / completed) ** 0.5
-            if completed
-            else float("nan")
-        )
-        fraction = (lambda n: n / steps) if steps else (lambda n: float("nan"))
-        squares = self.getGlobalVariableByName("sum_residual_squared")
-        return {
-            "steps": steps,
-            **totals,
-            "fraction_within_tolerance": fraction(totals["steps_within_tolerance"]),
-            "fraction_fallen_back": fraction(totals["steps_fallen_back"]),
-            "force_evaluations_per_step": self.force_evaluations_per_step,
-            "rms_residual": fraction(squares) ** 0.5 if steps else float("nan"),
-            "max_abs_residual": self.getGlobalVariableByName("max_abs_residual") if steps else float("nan"),
-            "rms_short_trial_error": short_error,
-        }
-
-    def _check_system(self, context: mm.Context) -> None:
-        """Set the tolerances for the System and platform, and give the System's warnings."""
-        super()._check_system(context)
-        self._set_system_defaults(context.getSystem().usesPeriodicBoundaryConditions())
 
 
 def _order_and_composition(
     order: object, name: str | Composition | None, alpha_stages: str | tuple[int, ...] | None
 ) -> tuple[int, Composition | None]:
-    """The order and the composition (None: the single α-RATTLE step) that the options ask for."""
+    """Return the order and the composition (None: one α-RATTLE step) that the options ask for."""
     if order is not None and (isinstance(order, bool) or order not in (2, 4, 6)):
         raise InputError(
             f"order must be 2 (the α-RATTLE step), 4 or 6 (a composition of α-RATTLE steps), got {order!r}."
@@ -1231,11 +465,15 @@ def _energy_mode_only(name: str) -> str:
     )
 
 
-#: What the energy mode has and a fixed α has not.
-_ENERGY_MODE_ONLY = frozenset(
-    name
-    for cls in AlphaRattleEnergyIntegrator.__mro__
-    if cls is not AlphaRattleIntegrator and not issubclass(AlphaRattleIntegrator, cls)
-    for name in vars(cls)
-    if not name.startswith("_") and name != "energy_mode"
-)
+@cache
+def _energy_mode_only_names() -> frozenset[str]:
+    """Return what the energy mode has and a fixed α has not: its public properties and methods."""
+    from .energy_mode import AlphaRattleEnergyIntegrator
+
+    return frozenset(
+        name
+        for cls in AlphaRattleEnergyIntegrator.__mro__
+        if cls is not AlphaRattleIntegrator and not issubclass(AlphaRattleIntegrator, cls)
+        for name in vars(cls)
+        if not name.startswith("_") and name != "energy_mode"
+    )

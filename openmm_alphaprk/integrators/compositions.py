@@ -55,7 +55,9 @@ class Composition:
         if len(c) < 1 or not all(math.isfinite(x) for x in c):
             raise InputError(f"composition {self.name!r}: coefficients must be finite numbers, got {c!r}.")
         if abs(sum(c) - 1.0) > 1e-12:
-            raise InputError(f"composition {self.name!r}: coefficients must sum to 1, they sum to {sum(c)!r}.")
+            raise InputError(
+                f"composition {self.name!r}: coefficients must sum to 1, they sum to {sum(c)!r}."
+            )
         if any(abs(a - b) > 1e-12 for a, b in zip(c, reversed(c))):
             raise InputError(f"composition {self.name!r}: coefficients must be symmetric (c_i = c_(s+1-i)).")
         stages = self.alpha_stages or ((len(c) + 1) // 2,)
@@ -78,11 +80,11 @@ class Composition:
 
     @property
     def largest_substep(self) -> float:
-        """max |c_i|: the largest sub-step in units of h (what limits the stable step)."""
+        """Max |c_i|: the largest sub-step in units of h (what limits the stable step)."""
         return max(abs(c) for c in self.coefficients)
 
     def with_alpha_on(self, stages: str | tuple[int, ...]) -> Composition:
-        """The same composition with α on ``stages``: ``"middle"``, ``"all"`` or stage numbers."""
+        """Return the same composition with α on ``stages``: ``"middle"``, ``"all"`` or stage numbers."""
         if stages == "middle":
             chosen: tuple[int, ...] = ((self.stages + 1) // 2,)
         elif stages == "all":
@@ -95,7 +97,9 @@ class Composition:
 
     def listing(self) -> str:
         """One line: the name, the order and the coefficients, α's stages marked."""
-        parts = [f"{c:.6g}{'(α)' if i + 1 in self.alpha_stages else ''}" for i, c in enumerate(self.coefficients)]
+        parts = [
+            f"{c:.6g}{'(α)' if i + 1 in self.alpha_stages else ''}" for i, c in enumerate(self.coefficients)
+        ]
         return f"{self.name}: order {self.order}, {self.stages} stages ({', '.join(parts)})"
 
 
@@ -173,7 +177,7 @@ COMPOSITIONS: dict[str, Composition] = {
 
 
 def composition(name: str | Composition) -> Composition:
-    """The named composition (a :class:`Composition` is returned as it is)."""
+    """Return the named composition (a :class:`Composition` is returned as it is)."""
     if isinstance(name, Composition):
         return name
     try:

@@ -1,6 +1,6 @@
 """The energy mode's settings: their defaults by order, and their validation.
 
-Used by :class:`~.alpha_rattle.AlphaRattleEnergyIntegrator`, which declares them as
+Used by :class:`~.energy_mode.AlphaRattleEnergyIntegrator`, which declares them as
 global variables of its step program.
 """
 
@@ -56,8 +56,9 @@ class ControllerDefaults:
     take large excursions that spoil later steps (the interval comparison is in
     docs/energy_mode.md, "Defaults, and why"). Order 4 (any composition; the values are
     the triple jump's, with α on its middle sub-step, and scale by :func:`alpha_scale_of`
-    for another α stage): α* is O(h²), a few 1e-2 for water at 2 fs on the triple jump; a large excursion of α turns the step into a poor second-order
-    one, so the interval and the moves are small. The midpoint tolerance can be
+    for another α stage): α* is O(h²), a few 1e-2 for water at 2 fs on the triple
+    jump; a large excursion of α turns the step into a poor second-order one, so the
+    interval and the moves are small. The midpoint tolerance can be
     looser at order 4 because a midpoint error δ changes angular momentum by
     ≈ 2hα δ × F per step, and α is ~100× smaller. Order 4 allows one more trial:
     after the first, a trial is short (one force evaluation instead of three).
@@ -107,8 +108,12 @@ def controller_settings(
     (:func:`alpha_scale_of`).
     """
     defaults = CONTROLLER_DEFAULTS[order]
-    alpha_bounds = tuple(alpha_scale * b for b in defaults.alpha_bounds) if alpha_bounds is None else alpha_bounds
-    max_alpha_change = alpha_scale * defaults.max_alpha_change if max_alpha_change is None else max_alpha_change
+    alpha_bounds = (
+        tuple(alpha_scale * b for b in defaults.alpha_bounds) if alpha_bounds is None else alpha_bounds
+    )
+    max_alpha_change = (
+        alpha_scale * defaults.max_alpha_change if max_alpha_change is None else max_alpha_change
+    )
     alpha_probe = alpha_scale * defaults.alpha_probe if alpha_probe is None else alpha_probe
     max_trials = defaults.max_trials if max_trials is None else max_trials
     settings = ControllerSettings(

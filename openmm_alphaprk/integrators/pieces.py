@@ -10,7 +10,7 @@ Each piece is an ``_add_*`` method of :class:`_StepProgram` that appends computa
 to the ``CustomIntegrator``; the integrators (:mod:`~.rattle`, :mod:`~.alpha_rattle`)
 build their whole step programs from them, and :meth:`_StepProgram.program_listing`
 prints the result. The energy mode's controller pieces are on the class that has the
-energy mode (:class:`~.alpha_rattle.AlphaRattleEnergyIntegrator`).
+energy mode (:class:`~.energy_mode.AlphaRattleEnergyIntegrator`).
 
 **The frame of every program** (:meth:`_StepProgram._add_step`): an update-context-state
 step (RATTLE and fixed α; not the energy mode), then the system check, then the step
@@ -117,7 +117,7 @@ def _substep_h(composition: Composition, stage: int) -> str:
 
 
 def _stage_select(composition: Composition, first: int, what: str) -> str:
-    """Expression of the step size (``what="h"``) or α (``"alpha"``) of stage ``phase``, for phases ≥ ``first``.
+    """Expression of the step size (``what="h"``) or α (``"alpha"``) of stage ``phase`` ≥ ``first``.
 
     Written for the stages that can follow: one term where they all agree (the
     triple jump's last stage), else a sum of ``delta(phase - k)`` terms.
@@ -351,12 +351,14 @@ class _StepProgram(mm.CustomIntegrator):
             self.addGlobalVariable(f"alpha_on_stage_{i}", float(i in composition.alpha_stages))
 
     def _recorded_composition(self, order: int) -> Composition | None:
-        """The composition the program was built from, read back from its globals (None: none)."""
+        """Return the composition the program was built from, read from its globals (None: none)."""
         names = [self.getGlobalVariableName(i) for i in range(self.getNumGlobalVariables())]
         stages = sum(name.startswith("stage_coefficient_") for name in names)
         if not stages:
             return None
-        coefficients = tuple(self.getGlobalVariableByName(f"stage_coefficient_{i}") for i in range(1, stages + 1))
+        coefficients = tuple(
+            self.getGlobalVariableByName(f"stage_coefficient_{i}") for i in range(1, stages + 1)
+        )
         on = tuple(i for i in range(1, stages + 1) if self.getGlobalVariableByName(f"alpha_on_stage_{i}"))
         known = [c for c in COMPOSITIONS.values() if c.coefficients == coefficients]
         if known:
@@ -479,7 +481,9 @@ class _StepProgram(mm.CustomIntegrator):
             self.addComputePerDof("fmid", "f")
         self.addComputeGlobal("phase", "phase + 1")
         self.addComputeGlobal("hsub", _stage_select(composition, composition.first_alpha_stage + 1, "h"))
-        self.addComputeGlobal("alpha_sub", _stage_select(composition, composition.first_alpha_stage + 1, "alpha"))
+        self.addComputeGlobal(
+            "alpha_sub", _stage_select(composition, composition.first_alpha_stage + 1, "alpha")
+        )
         self.addComputeGlobal("need_midpoint", "0")
         if later_alpha:
             self.addComputeGlobal("next_stage_midpoint", "1 - delta(alpha_sub)")
@@ -492,7 +496,7 @@ class _StepProgram(mm.CustomIntegrator):
         trial_end: Callable[[], None] | None = None,
         substep_end: Callable[[], None] | None = None,
     ) -> None:
-        """Add the loop over a composition's stages from the first with α, after :meth:`_add_alpha_substeps_start`.
+        """Add the loop over the stages from the first with α, after :meth:`_add_alpha_substeps_start`.
 
         Each pass solves the current sub-step's positions; a finished sub-step takes its
         velocity update, runs ``substep_end`` (the energy mode: the energy there) and

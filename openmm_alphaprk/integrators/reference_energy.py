@@ -1,7 +1,7 @@
 """E_ref, the energy an integrator holds: when it is taken, how it is reset, how it is read.
 
 The integrators that hold the total energy at a reference value — α-RATTLE's energy mode
-(:class:`~.alpha_rattle.AlphaRattleEnergyIntegrator`) and RATTLE with velocity rescaling
+(:class:`~.energy_mode.AlphaRattleEnergyIntegrator`) and RATTLE with velocity rescaling
 (:class:`~.rescale.RattleRescaleIntegrator`) — take E_ref by one rule, written once here:
 
 E_ref is the total energy of the state at the first step, after

@@ -33,7 +33,8 @@ import openmm as mm
 import openmm.unit as unit
 
 from .._units import InputError
-from .compositions import DEFAULT_COMPOSITIONS, Composition, composition as named_composition
+from .compositions import DEFAULT_COMPOSITIONS, Composition
+from .compositions import composition as named_composition
 from .pieces import DEFAULT_CONSTRAINT_TOLERANCE, _StepProgram
 from .reference_energy import _ReferenceEnergy, energy_tolerance_setting
 from .variables import RATTLE_RESIDUAL, RESCALE_HALTED, STEPS_TAKEN, VELOCITY_SCALE
@@ -380,9 +381,11 @@ def _angular_velocity(axis: str) -> str:
 
 
 def _rattle_composition(order: int | None, name: str | Composition | None) -> Composition | None:
-    """The composition of RATTLE steps that ``order`` or ``name`` ask for (None: one RATTLE step)."""
+    """Return the composition of RATTLE steps that ``order`` or ``name`` ask for (None: one step)."""
     if order is not None and (isinstance(order, bool) or order not in (2, 4, 6)):
-        raise InputError(f"order must be 2 (one RATTLE step), 4 or 6 (a composition of RATTLE steps), got {order!r}.")
+        raise InputError(
+            f"order must be 2 (one RATTLE step), 4 or 6 (a composition of RATTLE steps), got {order!r}."
+        )
     if name is None and order in (None, 2):
         return None
     chosen = named_composition(DEFAULT_COMPOSITIONS[order] if name is None else name)

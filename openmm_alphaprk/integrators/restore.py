@@ -5,7 +5,8 @@ from __future__ import annotations
 import openmm as mm
 
 from .._units import InputTypeError
-from .alpha_rattle import AlphaRattleEnergyIntegrator, AlphaRattleIntegrator
+from .alpha_rattle import AlphaRattleIntegrator
+from .energy_mode import AlphaRattleEnergyIntegrator
 from .pieces import _StepProgram
 from .rattle import RattleIntegrator
 from .rescale import RattleRescaleIntegrator
@@ -38,7 +39,7 @@ def restore_integrator(
     -------
     The same object, now an instance of :class:`~.rattle.RattleIntegrator`,
     :class:`~.rescale.RattleRescaleIntegrator`, :class:`~.alpha_rattle.AlphaRattleIntegrator`
-    or (a program of the energy mode) :class:`~.alpha_rattle.AlphaRattleEnergyIntegrator`.
+    or (a program of the energy mode) :class:`~.energy_mode.AlphaRattleEnergyIntegrator`.
 
     Raises
     ------

@@ -51,13 +51,13 @@ import openmm as mm
 import openmm.unit as unit
 
 from .._units import InputError
-from ..integrators.compositions import COMPOSITIONS
 from ..integrators import (
     AlphaRattleIntegrator,
     IncompatibleSystemError,
     RattleIntegrator,
     RattleRescaleIntegrator,
 )
+from ..integrators.compositions import COMPOSITIONS
 from ..observables import VERLET_IS_LEAPFROG
 from ..platforms import massless_particles
 
@@ -208,14 +208,15 @@ def parse_integrator(text: str | IntegratorSpec) -> IntegratorSpec:
     if colon:
         if entry is None or entry.order == 2:
             raise UnknownIntegratorError(
-                f"{text!r}: only alpha4, energy4, alpha6, energy6, rattle4+rescale and rattle6+rescale take a "
-                "composition (e.g. energy4:triple-jump)."
+                f"{text!r}: only alpha4, energy4, alpha6, energy6, rattle4+rescale and rattle6+rescale "
+                "take a composition (e.g. energy4:triple-jump)."
             )
         found = COMPOSITIONS.get(chosen)
         if found is None or found.order != entry.order:
             fitting = [c.name for c in COMPOSITIONS.values() if c.order == entry.order]
             raise UnknownIntegratorError(
-                f"{text!r}: no composition {chosen!r} of order {entry.order}; use one of {', '.join(fitting)}."
+                f"{text!r}: no composition {chosen!r} of order {entry.order}; "
+                f"use one of {', '.join(fitting)}."
             )
     composition_name = chosen if colon else None
     if entry is not None and not entry.takes_number and not equals:
@@ -226,7 +227,9 @@ def parse_integrator(text: str | IntegratorSpec) -> IntegratorSpec:
         except (ValueError, ZeroDivisionError):
             value = None
         if value is not None and value == value and abs(value) != float("inf"):
-            return IntegratorSpec(entry.kind, value, text=cleaned, order=entry.order, composition=composition_name)
+            return IntegratorSpec(
+                entry.kind, value, text=cleaned, order=entry.order, composition=composition_name
+            )
     raise UnknownIntegratorError(
         f"unknown integrator {text!r}; use one of: rattle, rattle+rescale, verlet, energy, energy4, energy6, "
         "alpha=<number>, alpha4=<number>, alpha6=<number> (e.g. alpha=0.5, alpha=1/6, alpha4=0), "

@@ -146,10 +146,11 @@ def equal_cost_name(k: int) -> str:
 
 
 def _costs_more_than_rattle(summary: RunSummary) -> bool:
-    """True for a row that takes more than one force evaluation per step (not an equal-cost row itself)."""
-    return not summary.integrator.startswith(equal_cost_name(0)[:-1]) and equal_cost_divisor(
-        summary.force_evaluations_per_step
-    ) > 1
+    """Tell whether a row takes more than one force evaluation per step (not an equal-cost row)."""
+    return (
+        not summary.integrator.startswith(equal_cost_name(0)[:-1])
+        and equal_cost_divisor(summary.force_evaluations_per_step) > 1
+    )
 
 
 def equal_cost_divisors(summaries: Sequence[RunSummary]) -> list[int]:
@@ -181,7 +182,7 @@ def _run_equal_cost_rattle(
 def equal_cost_gains(
     summaries: Sequence[RunSummary], accuracy: dict[str, Horizon] | None = None
 ) -> list[dict]:
-    """For each row of k > 1 evaluations per step with a RATTLE h/k row: k and RMS(H − E_ref) of RATTLE h/k over the row's.
+    """For each row of k > 1 evaluations per step: k, and RATTLE h/k's RMS(H − E_ref) over the row's.
 
     With ``accuracy`` (:func:`_accuracy`'s errors) also both rows' RMS position errors and
     their ratio, ``position_gain`` (RATTLE h/k's over the row's: below 1, RATTLE at equal
@@ -408,7 +409,8 @@ def format_comparison_table(
 
     Drifts are printed by :func:`~openmm_alphaprk.observables.drift_text` (± standard
     error, or "not resolved"), energies with three significant digits, as in the figure.
-    ``gains`` (:func:`equal_cost_gains`) adds a line per row of more than one evaluation per step; ``accuracy``
+    ``gains`` (:func:`equal_cost_gains`) adds a line per row of more than one evaluation per
+    step; ``accuracy``
     (row name → :class:`~openmm_alphaprk.runs.accuracy.Horizon`) a column of RMS position
     errors against RATTLE at h/64.
     """

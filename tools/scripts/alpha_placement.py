@@ -13,7 +13,6 @@ import argparse
 import json
 from functools import partial
 
-import numpy as np
 import openmm.unit as unit
 
 from openmm_alphaprk import AlphaRattleIntegrator

@@ -61,7 +61,9 @@ def main() -> None:
     for chosen in COMPOSITIONS.values():
         for alpha in (0.0, "energy"):
             make = partial(AlphaRattleIntegrator, h * unit.picoseconds, alpha, composition=chosen)
-            evaluations = record(f"{chosen.name} {'α = 0' if alpha == 0.0 else 'energy mode'}", SubStepped(make))
+            evaluations = record(
+                f"{chosen.name} {'α = 0' if alpha == 0.0 else 'energy mode'}", SubStepped(make)
+            )
             if math.isfinite(evaluations):
                 divisors.add(math.ceil(evaluations - 1e-9))
     for k in sorted(divisors):
