@@ -81,3 +81,10 @@ def test_every_step_program_is_the_stored_one():
     for name, block in zip(INTEGRATORS, stored.split("=== ")[1:], strict=True):
         assert block == f"{name}\n{describe(INTEGRATORS[name]())}\n", f"the step program of {name} changed"
     assert text == stored
+
+
+def test_the_documented_listings_are_the_programs():
+    """docs/step_programs.md, linked from the integrators' docstrings, is what the package builds now."""
+    from tools.reports.step_programs import PAGE, page_text
+
+    assert PAGE.read_text(encoding="utf-8") == page_text(), "run python -m tools.reports.step_programs"

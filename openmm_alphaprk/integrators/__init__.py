@@ -7,7 +7,8 @@ The α-RATTLE step from a consistent state (x0, v0) with F0 = F(x0) (Li & Wang, 
 
 The implicit midpoint force is found by fixed-point iteration started from the RATTLE
 predictor and iterated to a tolerance (a single pass is not symplectic).
-``integrator.program_listing()`` (every integrator of this package) prints the program
+``integrator.program_listing()`` (every integrator of this package; docs/step_programs.md
+holds them all) prints the program
 OpenMM runs, one computation per line, indented by block.
 
 Modules:

@@ -69,7 +69,8 @@ class AlphaRattleIntegrator(_StepProgram):
     refused with a fixed α, where they would do nothing, and its properties and methods
     exist only on the energy-mode integrator.
 
-    :meth:`program_listing` prints the step program OpenMM runs.
+    :meth:`program_listing` prints the step program OpenMM runs; docs/step_programs.md
+    lists every configuration's.
 
     Parameters
     ----------

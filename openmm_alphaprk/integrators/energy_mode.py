@@ -117,6 +117,8 @@ def _ar2_prediction(series: str) -> str:
 class AlphaRattleEnergyIntegrator(_ReferenceEnergy, AlphaRattleIntegrator):
     """α-RATTLE's energy-preserving mode: α chosen every step so that H stays at E_ref.
 
+    Its step program, as OpenMM runs it: :meth:`program_listing`, and docs/step_programs.md.
+
     Made by ``AlphaRattleIntegrator(timestep, alpha="energy", ...)`` (the parameters
     are documented there); this class adds what the mode has and a fixed α has not:
     E_ref (taken and reset by the rule of :mod:`~.reference_energy`), H − E_ref, the

@@ -10,6 +10,8 @@ from .pieces import DEFAULT_CONSTRAINT_TOLERANCE, _StepProgram
 class RattleIntegrator(_StepProgram):
     """Velocity Verlet with SHAKE/SETTLE positions and RATTLE velocities.
 
+    Its step program, as OpenMM runs it: :meth:`program_listing`, and docs/step_programs.md.
+
     The standard constrained integrator, written with the same pieces as
     :class:`~openmm_alphaprk.integrators.AlphaRattleIntegrator` to be the baseline of
     every comparison. Velocities are at the full step, so ``State.getKineticEnergy()``

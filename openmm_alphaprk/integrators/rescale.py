@@ -62,6 +62,8 @@ class VelocityRescaleError(RuntimeError):
 class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
     """RATTLE, then the velocities relative to the rigid-body motion scaled so that H = E_ref.
 
+    Its step program, as OpenMM runs it: :meth:`program_listing`, and docs/step_programs.md.
+
     The baseline every energy-holding method must beat: one force evaluation per step
     (its energy comes with it), H held at E_ref to the round-off of OpenMM's energy,
     linear and angular momentum and the velocity constraints kept, and the trajectory
