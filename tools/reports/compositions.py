@@ -1,7 +1,7 @@
 r"""The tables of docs/compositions.md from the JSON of ``alphaprk bench accuracy``.
 
-Run from the repository root, after the benchmarks wrote ``docs/compositions_accuracy_2fs.json``
-and ``docs/compositions_accuracy_4fs.json``::
+Run from the repository root, after the benchmarks wrote ``docs/compositions_accuracy_2fs*.json``
+and ``docs/compositions_accuracy_4fs*.json`` (one or more files per step)::
 
     python -m tools.reports.compositions
 
@@ -62,10 +62,10 @@ def verdicts(result: dict) -> str:
 def main() -> None:
     tables = {}
     for step in STEPS:
-        path = DOCS / f"compositions_accuracy_{step}.json"
-        if not path.is_file():
-            continue
-        for system, result in json.loads(path.read_text(encoding="utf-8"))["systems"].items():
+        results = {}
+        for path in sorted(DOCS.glob(f"compositions_accuracy_{step}*.json")):
+            results.update(json.loads(path.read_text(encoding="utf-8"))["systems"])
+        for system, result in results.items():
             tables[f"{system} {step} header"] = result["header"]
             tables[f"{system} {step} rows"] = rows_table(result)
             tables[f"{system} {step} verdicts"] = verdicts(result)
