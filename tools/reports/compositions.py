@@ -9,7 +9,8 @@ It rewrites the generated blocks of ``docs/compositions.md`` (the prose is left 
 system and step the rows (cost, energy error, position errors at each horizon) and, for
 every row of more than one force evaluation per step, its verdicts at equal cost: against
 RATTLE and RATTLE + rescaling at h/k (k its evaluations per step rounded up) and against
-RATTLE at the h/r of equal CPU wall time.
+RATTLE at the h/r of equal CPU wall time; and draws
+``docs/figures/compositions_accuracy_{2fs,4fs}.png`` (position error against time).
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ import math
 from pathlib import Path
 
 from openmm_alphaprk.runs.integrator_names import label
+from openmm_alphaprk.workflows.plots import plot_accuracy
 from tools.reports.accuracy import rows_table
 from tools.reports.markdown import markdown_table, update_page
 
@@ -69,6 +71,8 @@ def main() -> None:
             tables[f"{system} {step} header"] = result["header"]
             tables[f"{system} {step} rows"] = rows_table(result)
             tables[f"{system} {step} verdicts"] = verdicts(result)
+        if results:
+            plot_accuracy(results, DOCS / "figures" / f"compositions_accuracy_{step}.png")
     missing = update_page(DOCS / "compositions.md", tables)
     if missing:
         raise SystemExit(f"docs/compositions.md has no block for {missing}")
