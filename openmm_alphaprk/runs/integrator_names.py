@@ -231,9 +231,10 @@ def parse_integrator(text: str | IntegratorSpec) -> IntegratorSpec:
                 entry.kind, value, text=cleaned, order=entry.order, composition=composition_name
             )
     raise UnknownIntegratorError(
-        f"unknown integrator {text!r}; use one of: rattle, rattle+rescale, verlet, energy, energy4, energy6, "
-        "alpha=<number>, alpha4=<number>, alpha6=<number> (e.g. alpha=0.5, alpha=1/6, alpha4=0), "
-        "the composed ones optionally on a named composition (energy4:triple-jump)."
+        f"unknown integrator {text!r}; use one of: rattle, rattle+rescale, verlet, energy, energy4, "
+        "alpha=<number>, alpha4=<number> (e.g. alpha=0.5, alpha=1/6, alpha4=0), energy6, alpha6=<number>, "
+        "rattle4+rescale, rattle6+rescale; the composed ones optionally on a named composition "
+        "(energy4:triple-jump)."
     )
 
 
