@@ -65,7 +65,7 @@ def test_the_benchmark_adds_equal_cost_rows_and_states_every_error(cluster):
     rows_seen = []
     result = run_accuracy_benchmark(
         cluster,
-        ["rattle", "rattle+rescale", "alpha4=0"],
+        ["rattle", "rattle+rescale", "alpha4=0:triple-jump"],
         horizons=[2, 5],
         platform="Reference",
         timing_rounds=1,
@@ -76,11 +76,14 @@ def test_the_benchmark_adds_equal_cost_rows_and_states_every_error(cluster):
     by_name = {row.name: row for row in result.rows}
     assert [row.name for row in rows_seen] == [row.name for row in result.rows]
     # triple jump: 3 evaluations per step → RATTLE and RATTLE + rescaling at h/3
-    assert by_name["RATTLE h/3"].divisor == 3 and "equal evaluations (alpha4=0)" in by_name["RATTLE h/3"].role
+    assert (
+        by_name["RATTLE h/3"].divisor == 3
+        and "equal evaluations (alpha4=0:triple-jump)" in by_name["RATTLE h/3"].role
+    )
     assert by_name["RATTLE + rescaling h/3"].force_evaluations_per_step == pytest.approx(3.0)
-    assert by_name["α-RATTLE-4 α = 0"].force_evaluations_per_step == pytest.approx(3.0)
+    assert by_name["α-RATTLE-4 (triple-jump) α = 0"].force_evaluations_per_step == pytest.approx(3.0)
     assert by_name["RATTLE + rescaling"].rms_residual < 1e-9 < by_name["RATTLE"].rms_residual
-    rattle, triple = by_name["RATTLE"].horizons, by_name["α-RATTLE-4 α = 0"].horizons
+    rattle, triple = by_name["RATTLE"].horizons, by_name["α-RATTLE-4 (triple-jump) α = 0"].horizons
     assert all(t.position_rms < r.position_rms / 3 for r, t in zip(rattle, triple))  # fourth order
     for row in result.rows:
         assert [h.steps for h in row.horizons] == [2, 5]
