@@ -24,7 +24,7 @@ import openmm.unit as unit
 
 from .._units import InputError, to_dimensionless, to_float
 from ..observables import positive_int
-from .compositions import DEFAULT_COMPOSITIONS, Composition, composition
+from .compositions import Composition, requested_composition
 from .energy_settings import (
     CONTROLLER_DEFAULTS,
     DEFAULT_SLOPE_DAMPING,
@@ -423,20 +423,11 @@ def _order_and_composition(
     order: object, name: str | Composition | None, alpha_stages: str | tuple[int, ...] | None
 ) -> tuple[int, Composition | None]:
     """Return the order and the composition (None: one α-RATTLE step) that the options ask for."""
-    if order is not None and (isinstance(order, bool) or order not in (2, 4, 6)):
-        raise InputError(
-            f"order must be 2 (the α-RATTLE step), 4 or 6 (a composition of α-RATTLE steps), got {order!r}."
-        )
-    if name is None and order in (None, 2):
+    chosen = requested_composition(order, name)
+    if chosen is None:
         if alpha_stages is not None:
             raise InputError("alpha_stages applies to a composition; give order=4 or 6, or a composition.")
         return 2, None
-    chosen = composition(DEFAULT_COMPOSITIONS[order] if name is None else name)
-    if order is not None and order != chosen.order:
-        raise InputError(
-            f"composition {chosen.name!r} is of order {chosen.order}, but order={order} was given; "
-            "leave order out or give a composition of that order."
-        )
     if alpha_stages is not None:
         chosen = chosen.with_alpha_on(alpha_stages)
     return chosen.order, chosen

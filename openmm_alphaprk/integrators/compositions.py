@@ -190,3 +190,23 @@ def composition(name: str | Composition) -> Composition:
 
 #: The composition ``order=4`` and ``order=6`` give.
 DEFAULT_COMPOSITIONS: dict[int, str] = {4: "suzuki5", 6: "mclachlan9"}
+
+
+def requested_composition(order: object, name: str | Composition | None) -> Composition | None:
+    """Return the composition that an integrator's ``order`` and ``composition`` options ask for.
+
+    None for one step (``order`` None or 2 and no name); the order's default composition
+    (:data:`DEFAULT_COMPOSITIONS`) for ``order`` 4 or 6; the named one otherwise, whose
+    order must agree with an ``order`` given beside it.
+    """
+    if order is not None and (isinstance(order, bool) or order not in (2, 4, 6)):
+        raise InputError(f"order must be 2 (one step), 4 or 6 (a composition of steps), got {order!r}.")
+    if name is None and order in (None, 2):
+        return None
+    chosen = composition(DEFAULT_COMPOSITIONS[order] if name is None else name)
+    if order is not None and order != chosen.order:
+        raise InputError(
+            f"composition {chosen.name!r} is of order {chosen.order}, but order={order} was given; "
+            "leave order out or give a composition of that order."
+        )
+    return chosen

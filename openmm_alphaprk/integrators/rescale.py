@@ -32,9 +32,7 @@ import math
 import openmm as mm
 import openmm.unit as unit
 
-from .._units import InputError
-from .compositions import DEFAULT_COMPOSITIONS, Composition
-from .compositions import composition as named_composition
+from .compositions import Composition, requested_composition
 from .pieces import DEFAULT_CONSTRAINT_TOLERANCE, _StepProgram
 from .reference_energy import _ReferenceEnergy, energy_tolerance_setting
 from .variables import RATTLE_RESIDUAL, RESCALE_HALTED, STEPS_TAKEN, VELOCITY_SCALE
@@ -116,7 +114,7 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         composition: str | Composition | None = None,
     ) -> None:
         tolerance = energy_tolerance_setting(energy_tolerance)
-        self._composition = _rattle_composition(order, composition)
+        self._composition = requested_composition(order, composition)
         super().__init__(timestep, constraint_tolerance)
         self._add_reference_energy_variables(tolerance)
         self._add_rescale_variables()
@@ -380,20 +378,3 @@ def _angular_velocity(axis: str) -> str:
         "ixy = inertia_xy; ixz = inertia_xz; iyz = inertia_yz;"
         f"eps = {_INERTIA_REGULARIZATION!r}*sum_inertia"
     )
-
-
-def _rattle_composition(order: int | None, name: str | Composition | None) -> Composition | None:
-    """Return the composition of RATTLE steps that ``order`` or ``name`` ask for (None: one step)."""
-    if order is not None and (isinstance(order, bool) or order not in (2, 4, 6)):
-        raise InputError(
-            f"order must be 2 (one RATTLE step), 4 or 6 (a composition of RATTLE steps), got {order!r}."
-        )
-    if name is None and order in (None, 2):
-        return None
-    chosen = named_composition(DEFAULT_COMPOSITIONS[order] if name is None else name)
-    if order is not None and order != chosen.order:
-        raise InputError(
-            f"composition {chosen.name!r} is of order {chosen.order}, but order={order} was given; "
-            "leave order out or give a composition of that order."
-        )
-    return chosen
