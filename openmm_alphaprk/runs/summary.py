@@ -170,8 +170,9 @@ def _notes(spec: IntegratorSpec, integrator: mm.Integrator) -> list[str]:
     """Return the caveats of the integrator (leapfrog velocities) and what a rescaling removed."""
     if isinstance(integrator, RattleRescaleIntegrator) and integrator.steps_taken:
         totals = integrator.rescale_totals()
+        scaled = "its RATTLE step" if integrator.composition is None else "its composition of RATTLE steps"
         return [
-            f"{spec.name}: the velocity scaling removed RATTLE's energy error of RMS "
+            f"{spec.name}: the velocity scaling removed the energy error of {scaled}: RMS "
             f"{totals['rms_rattle_residual']:.3g} kJ/mol per step (max |s - 1| "
             f"{totals['max_abs_scale_change']:.2g}, E_ref taken {totals['reference_resets']} time(s))."
         ]
