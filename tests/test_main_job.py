@@ -1,6 +1,6 @@
 """The README's main job (``alphaprk compare``) from the shipped start state gives the README's numbers.
 
-Marked slow (about 7 min on 2 cores): run with ``python -m pytest -m slow tests/test_main_job.py``.
+Marked slow (about 20 min on 2 cores): run with ``python -m pytest -m slow tests/test_main_job.py``.
 The CPU platform sums forces in a thread-dependent order, so runs are not bitwise
 repeatable and the chaotic trajectories part after a few hundred steps: the README states
 its numbers to the precision checked here (RATTLE and `alpha4=0` 15 %, the energy mode
