@@ -391,13 +391,6 @@ class AlphaRattleIntegrator(_StepProgram):
         """2 (the α-RATTLE step), or the order of the composition at α = 0 (4, 6)."""
         return int(self.getGlobalVariableByName("order"))
 
-    @property
-    def composition(self) -> Composition | None:
-        """The composition the step is made of, α's stages marked (None: one α-RATTLE step)."""
-        if "_composition" in vars(self):
-            return self._composition
-        return self._recorded_composition(self.order)
-
     def __repr__(self) -> str:
         alpha = "'energy'" if self.energy_mode else self.alpha
         chosen = self.composition

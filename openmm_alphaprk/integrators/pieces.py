@@ -315,7 +315,7 @@ class _StepProgram(mm.CustomIntegrator):
 
         A composition's coefficients and α's stages are kept as globals
         ``stage_coefficient_<i>`` and ``alpha_on_stage_<i>`` (read back by
-        :attr:`~.alpha_rattle.AlphaRattleIntegrator.composition`; the program itself
+        :attr:`composition`; the program itself
         has them written into its expressions).
         """
         self.addGlobalVariable(ALPHA, alpha)
@@ -345,13 +345,20 @@ class _StepProgram(mm.CustomIntegrator):
             self._add_composition_record(composition)
 
     def _add_composition_record(self, composition: Composition) -> None:
-        """Keep a composition's coefficients and α's stages as globals (:meth:`_recorded_composition`)."""
+        """Keep a composition's coefficients and α's stages as globals (read by :attr:`composition`)."""
         for i, c in enumerate(composition.coefficients, start=1):
             self.addGlobalVariable(f"stage_coefficient_{i}", c)
             self.addGlobalVariable(f"alpha_on_stage_{i}", float(i in composition.alpha_stages))
 
-    def _recorded_composition(self, order: int) -> Composition | None:
-        """Return the composition the program was built from, read from its globals (None: none)."""
+    @property
+    def composition(self) -> Composition | None:
+        """The composition of steps the program is made of, α's stages marked (None: one step).
+
+        Read back from the program's globals (:meth:`_add_composition_record`) for an
+        integrator restored from XML or taken from a Context.
+        """
+        if "_composition" in vars(self):
+            return self._composition
         names = [self.getGlobalVariableName(i) for i in range(self.getNumGlobalVariables())]
         stages = sum(name.startswith("stage_coefficient_") for name in names)
         if not stages:
@@ -363,6 +370,7 @@ class _StepProgram(mm.CustomIntegrator):
         known = [c for c in COMPOSITIONS.values() if c.coefficients == coefficients]
         if known:
             return known[0].with_alpha_on(on)
+        order = int(self.getGlobalVariableByName("order")) if "order" in names else 0
         return Composition("restored", coefficients, order, "read back from the step program", on)
 
     # ------------------------------------------------------ α-RATTLE's midpoint

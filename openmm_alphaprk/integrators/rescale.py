@@ -317,14 +317,6 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
 
     # ---------------------------------------------------------------- what the user reads
     @property
-    def composition(self) -> Composition | None:
-        """The composition of RATTLE steps the step is made of (None: one RATTLE step)."""
-        if "_composition" in vars(self):
-            return self._composition
-        names = [self.getGlobalVariableName(i) for i in range(self.getNumGlobalVariables())]
-        return self._recorded_composition(0) if "stage_coefficient_1" in names else None
-
-    @property
     def velocity_scale(self) -> float:
         """The factor s the last step scaled the velocities relative to the rigid-body motion by."""
         return self.getGlobalVariableByName(VELOCITY_SCALE)
