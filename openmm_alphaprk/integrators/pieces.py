@@ -484,7 +484,7 @@ class _StepProgram(mm.CustomIntegrator):
         self.addComputePerDof("x0", "x")
         self.addComputePerDof("v0", "v")
         self.addComputePerDof("fstart", "f")
-        later_alpha = [k for k in composition.alpha_stages if k > composition.first_alpha_stage]
+        later_alpha = len(composition.alpha_stages) > 1  # stages are distinct and sorted
         if later_alpha:
             self.addComputePerDof("fmid", "f")
         self.addComputeGlobal("phase", "phase + 1")
