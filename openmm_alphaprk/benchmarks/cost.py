@@ -47,8 +47,9 @@ class BenchmarkRow:
 #: Integrator names (:mod:`openmm_alphaprk.runs.integrator_names`) of the core benchmark; the first is
 #: the baseline of the time ratios.
 CORE = ("verlet", "rattle", "rattle+rescale", "alpha=0", "alpha=1/6", "alpha=1/2")
-#: Every program: the core set, α-RATTLE-4 (α = 0 and 0.05) and both energy modes.
-ALL = (*CORE, "alpha4=0", "alpha4=0.05", "energy", "energy4")
+#: Every program: the core set, α-RATTLE-4 (α = 0 and 0.05), RATTLE-4 + rescaling, α-RATTLE-6 at α = 0
+#: and both energy modes.
+ALL = (*CORE, "alpha4=0", "alpha4=0.05", "rattle4+rescale", "alpha6=0", "energy", "energy4")
 
 
 def cost_benchmark_integrators(
@@ -59,7 +60,7 @@ def cost_benchmark_integrators(
 
 
 def all_integrators(timestep: float) -> dict[str, Callable[[], mm.Integrator]]:
-    """Return the core set, α-RATTLE-4 (α = 0 and 0.05) and both energy modes: every program."""
+    """Return :data:`ALL`: every program."""
     return cost_benchmark_integrators(timestep, ALL)
 
 
@@ -288,7 +289,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         "--integrators",
         choices=sorted(INTEGRATOR_SETS),
         default="core",
-        help="core: Verlet, RATTLE, α = 0, 1/6, 1/2; all: also α-RATTLE-4 and the energy modes",
+        help="core: Verlet, RATTLE, RATTLE + rescaling, α = 0, 1/6, 1/2; all: also α-RATTLE-4, RATTLE-4 + "
+        "rescaling, α-RATTLE-6 and the energy modes",
     )
     parser.add_argument("--json", help="also write the rows to this JSON file")
     args = parser.parse_args(argv)

@@ -66,7 +66,7 @@ class EnergyRow:
 
 
 #: The rows, by integrator name (:mod:`openmm_alphaprk.runs.integrator_names`); the first is the baseline.
-INTEGRATOR_NAMES = ("rattle", "rattle+rescale", "energy", "alpha4=0", "energy4")
+INTEGRATOR_NAMES = ("rattle", "rattle+rescale", "energy", "alpha4=0", "rattle4+rescale", "energy4")
 #: α-RATTLE-4's fixed α values scanned beside the energy modes (with ``alpha4=0``: the fixed-α scan).
 FIXED_ALPHA_SCAN = (0.005, 0.01, 0.015, 0.02)
 #: Label of the row whose force evaluations per step set k for the equal-cost RATTLE row.
@@ -324,7 +324,7 @@ def ratios_to_rattle(rows: Sequence[EnergyRow]) -> dict[str, dict[str, float | s
     by_name = {row.name: row for row in rows}
     rattle = by_name.get(label("rattle"))
     equal = next((row for row in rows if row.name.startswith(equal_cost_label(""))), None)
-    triple_jump = by_name.get(label("alpha4=0"))
+    composition_at_alpha_0 = by_name.get(label("alpha4=0"))
     best = best_fixed_alpha(rows)
     energy_labels = {label("energy"), label("energy4")}
     ratios = {}
@@ -338,8 +338,8 @@ def ratios_to_rattle(rows: Sequence[EnergyRow]) -> dict[str, dict[str, float | s
         if same_cost:
             entry["rms_vs_rattle_equal_cost"] = equal.rms_residual / row.rms_residual
         if row.name in energy_labels:
-            if triple_jump is not None:
-                entry["rms_vs_alpha4_0"] = triple_jump.rms_residual / row.rms_residual
+            if composition_at_alpha_0 is not None:
+                entry["rms_vs_alpha4_0"] = composition_at_alpha_0.rms_residual / row.rms_residual
             if best is not None:
                 entry["best_fixed_alpha"] = best.name
                 entry["rms_vs_best_fixed_alpha"] = best.rms_residual / row.rms_residual
@@ -350,8 +350,9 @@ def ratios_to_rattle(rows: Sequence[EnergyRow]) -> dict[str, dict[str, float | s
 def format_energy_table(rows: Sequence[EnergyRow], header: str = "") -> str:
     """Format the rows as a plain-text table."""
     lines = [header] if header else []
+    width = max([16, *(len(row.name) for row in rows)])
     lines.append(
-        f"{'integrator':<16} {'steps':>6} {'drift/DOF kJ/mol/ns ± SE':<26} {'RMS(H-Eref)':>11} "
+        f"{'integrator':<{width}} {'steps':>6} {'drift/DOF kJ/mol/ns ± SE':<26} {'RMS(H-Eref)':>11} "
         f"{'max|H-Eref|':>11} "
         f"{'evals/step':>10} {'time ratio':>10} {'within tol':>10} {'fell back':>9} {'at bound':>8} "
         f"{'E_ref':>5}  alpha* p5/p50/p95"
@@ -364,8 +365,8 @@ def format_energy_table(rows: Sequence[EnergyRow], header: str = "") -> str:
         )
         drift = drift_text(row.drift_per_dof, row.drift_per_dof_standard_error)
         lines.append(
-            f"{row.name:<16} {row.steps:>6} {drift:<26} {row.rms_residual:>11.4f} "
-            f"{row.max_abs_residual:>11.4f} {row.force_evaluations_per_step:>10.2f} {row.time_ratio:>10.2f} "
+            f"{row.name:<{width}} {row.steps:>6} {drift:<26} {row.rms_residual:>11.4g} "
+            f"{row.max_abs_residual:>11.4g} {row.force_evaluations_per_step:>10.2f} {row.time_ratio:>10.2f} "
             f"{row.fraction_within_tolerance:>10.3f} {row.fraction_fallen_back:>9.3f} "
             f"{row.fraction_at_bound:>8.3f} "
             f"{'-' if row.reference_resets is None else row.reference_resets:>5}  "
@@ -383,7 +384,7 @@ def format_ratios(rows: Sequence[EnergyRow]) -> str:
     ]
     for name, entry in ratios_to_rattle(rows).items():
         equal = entry.get("rms_vs_rattle_equal_cost")
-        line = f"  {name:<24} {entry['rms_vs_rattle']:8.2f}x" + (
+        line = f"  {name:<26} {entry['rms_vs_rattle']:8.2f}x" + (
             f"   at equal cost {equal:6.2f}x" if equal is not None else ""
         )
         if "rms_vs_alpha4_0" in entry:
@@ -418,8 +419,8 @@ def _parser() -> argparse.ArgumentParser:
         "--only",
         nargs="*",
         default=None,
-        help="run only these integrators, by name (rattle+rescale, energy, alpha4=0, energy4; rattle always "
-        "runs)",
+        help="run only these integrators, by name (rattle+rescale, energy, alpha4=0, rattle4+rescale, "
+        "energy4; rattle always runs)",
     )
     parser.add_argument(
         "--fixed-alpha",
