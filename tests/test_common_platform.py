@@ -103,12 +103,23 @@ def test_a_step_ended_in_its_best_trial_continues_as_on_reference(water_box, spe
 
     The kept trial's midpoint force matters (α ≠ 0); the restore assigns positions
     after the loop, and the next step projects from the restored state: all must
-    follow Reference on the platform.
+    follow Reference on the platform. On the triple jump, whose α moves the energy
+    far more than Suzuki's: one step at α = 0.05 and 0.2 ends 0.019 and 0.095 kJ/mol
+    from the start energy on Reference, apart by more than single precision's energy
+    noise (~0.01 kJ/mol here); on Suzuki's composition the two differ by 0.004 kJ/mol,
+    and on CUDA single the noise decided which trial was kept.
     """
     results = []
     for platform in ("Reference", spec):
         integrator = AlphaRattleIntegrator(
-            H, "energy", order=4, max_trials=2, alpha_probe=0.2, max_alpha_change=0.2, energy_tolerance=1e-9
+            H,
+            "energy",
+            order=4,
+            composition="triple-jump",
+            max_trials=2,
+            alpha_probe=0.2,
+            max_alpha_change=0.2,
+            energy_tolerance=1e-9,
         )
         context = _context(water_box.system, integrator, platform, water_box.positions, water_box.velocities)
         integrator.alpha = 0.05
@@ -376,17 +387,19 @@ def test_virtual_sites_refused_where_a_step_cannot_be_right(tip4pew_box, spec):
         AlphaRattleIntegrator(H, "energy", order=4),
     ):
         context = _context(system, integrator, spec, x0, v0)
+        before = velocities_of(context)  # as the Context holds them (rounded to float in single precision)
         with pytest.raises(IncompatibleSystemError, match="midpoint"):
             integrator.step(1)  # the step is not taken (the Context's step count still advances)
-        assert np.array_equal(velocities_of(context), np.asarray(v0)) and integrator.steps_taken == 0
+        assert np.array_equal(velocities_of(context), before) and integrator.steps_taken == 0
         with pytest.raises(IncompatibleSystemError, match="midpoint"):
             integrator.check_context(context)  # with the platform seen: before any step
     # α = 0 runs once check_context has seen the platform, and α set later is refused before the next step
     integrator = AlphaRattleIntegrator(H, 0.0)
     context = _context(system, integrator, spec, x0, v0)
+    before = velocities_of(context)
     with pytest.raises(IncompatibleSystemError, match=r"call integrator\.check_context\(context\)"):
         integrator.step(2)  # not shown the platform: the first step is not taken
-    assert np.array_equal(velocities_of(context), np.asarray(v0)) and integrator.steps_taken == 0
+    assert np.array_equal(velocities_of(context), before) and integrator.steps_taken == 0
     integrator.check_context(context)
     integrator.step(2)
     integrator.alpha = 0.2
