@@ -10,9 +10,10 @@ The classes, each an integrator (the pieces they are built from are in :mod:`~.p
 ``AlphaRattleIntegrator(timestep, alpha="energy")`` returns an
 :class:`~.energy_mode.AlphaRattleEnergyIntegrator` (its programs and controller are in
 :mod:`~.energy_mode`). The two fixed-α programs (one step, or a composition) are the
-``_build_*`` methods below; the composition programs, fixed α and energy mode,
-share one loop over the stages (:meth:`~.pieces._StepProgram._add_composition_loop`), built
-from the composition's coefficients (:mod:`~.compositions`).
+``_build_*`` methods below; a composition's program runs its stages from the first
+α stage in one loop (:meth:`~.pieces._StepProgram._add_composition_loop`; the energy
+mode's loop adds its trial ends, ``energy_mode``), built from the composition's
+coefficients (:mod:`~.compositions`).
 """
 
 from __future__ import annotations
@@ -290,7 +291,7 @@ class AlphaRattleIntegrator(_StepProgram):
         self._add_save_step_start(xstep="x", vstep="v", fstart="f")
         self._add_leading_substeps(composition)
         self._add_alpha_substeps_start(composition, "1 - delta(alpha)", fmid="f")
-        self._add_composition_loop(composition, self._add_midpoint_force)
+        self._add_composition_loop(composition)
         self._add_midpoint_end_step()
 
     def step(self, steps: int) -> None:

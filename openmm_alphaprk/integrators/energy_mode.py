@@ -67,6 +67,7 @@ import openmm as mm
 import openmm.unit as unit
 
 from .alpha_rattle import AlphaRattleIntegrator
+from .compositions import Composition
 from .energy_settings import (
     NON_PERIODIC_MIDPOINT_TOLERANCE,
     PREDICTOR_FORGETTING,
@@ -282,16 +283,39 @@ class AlphaRattleEnergyIntegrator(_ReferenceEnergy, AlphaRattleIntegrator):
         self.addComputeGlobal("virtual_trial", "0")
         self.addComputeGlobal("completing", "0")
         self.addComputeGlobal("trial_ready", "0")
-        self._add_composition_loop(
-            composition,
-            self._add_order4_trial_midpoint_force,
-            trial_end=self._add_order4_trial_end,
-            substep_end=self._add_substep_energy,
-        )
+        self._add_trial_loop(composition)
         self._add_best_trial_restore()
         self._add_controller_bookkeeping()
         self._add_trust_update()
         self._add_midpoint_end_step()
+
+    def _add_trial_loop(self, composition: Composition) -> None:
+        """Add the loop over the stages from the α stage: sub-steps, trial ends and midpoint solves.
+
+        The fixed-α loop (:meth:`~.pieces._StepProgram._add_composition_loop`) with the
+        trials: each pass first constrains x0, the sub-step's start (a no-op on its
+        positions that makes them the reference of the solve that follows on both
+        semantics, rule 2, whichever block ran last); a finished sub-step also measures
+        H (:meth:`_add_substep_energy`); where that set ``trial_ready`` the trial ends
+        (:meth:`_add_order4_trial_end`: the controller picks the next α or ends the
+        step); the midpoint block comes last (rule 1).
+        """
+        self.beginWhileBlock(f"phase < {composition.stages}.5")
+        self._add_next_stage_midpoint(composition)
+        self.addComputePerDof("x", "x0")
+        self.addConstrainPositions()
+        self._add_substep_solve(fallback="xstep")
+        self.beginIfBlock("substep_done > 0.5")
+        self._add_substep_end(composition, fallback="vstep")
+        self._add_substep_energy()
+        self.endBlock()
+        self.beginIfBlock("trial_ready > 0.5")
+        self._add_order4_trial_end()
+        self.endBlock()
+        self.beginIfBlock("need_midpoint > 0.5")
+        self._add_order4_trial_midpoint_force("hsub", "alpha_sub")
+        self.endBlock()
+        self.endBlock()
 
     def _add_substep_energy(self) -> None:
         """H at the end of a sub-step; after the middle one, whether the trial ends there.

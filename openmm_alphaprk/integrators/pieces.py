@@ -497,45 +497,31 @@ class _StepProgram(mm.CustomIntegrator):
             self.addComputeGlobal("next_stage_midpoint", "1 - delta(alpha_sub)")
         self.addComputeGlobal("previous_midpoint_change", "1e30")
 
-    def _add_composition_loop(
-        self,
-        composition: Composition,
-        midpoint_force: Callable[[str, str], None],
-        trial_end: Callable[[], None] | None = None,
-        substep_end: Callable[[], None] | None = None,
-    ) -> None:
+    def _add_composition_loop(self, composition: Composition) -> None:
         """Add the loop over the stages from the first with α, after :meth:`_add_alpha_substeps_start`.
 
         Each pass solves the current sub-step's positions; a finished sub-step takes its
-        velocity update, runs ``substep_end`` (the energy mode: the energy there) and
-        starts the next one; ``trial_end`` (the energy mode) runs where the global
-        ``trial_ready`` is set; the midpoint block comes last (rule 1), with
-        ``midpoint_force(h, alpha)`` of the sub-step. With ``trial_end`` each pass first
-        constrains x0, the sub-step's start: a no-op on its positions that makes them
-        the reference of the solve that follows on both semantics (rule 2), whichever
-        block ran last.
+        velocity update and starts the next one (:meth:`_add_next_stage_midpoint` first);
+        the midpoint block comes last (rule 1), with the fixed-α midpoint force of the
+        sub-step. The energy mode writes its own loop around the same pieces, with its
+        trial ends (``energy_mode.AlphaRattleEnergyIntegrator._add_trial_loop``).
         """
         self.beginWhileBlock(f"phase < {composition.stages}.5")
-        if len(composition.alpha_stages) > 1:
-            self.addComputeGlobal("need_midpoint", "max(need_midpoint, next_stage_midpoint)")
-            self.addComputeGlobal("next_stage_midpoint", "0")
-        if trial_end is not None:
-            self.addComputePerDof("x", "x0")
-            self.addConstrainPositions()
+        self._add_next_stage_midpoint(composition)
         self._add_substep_solve(fallback="xstep")
         self.beginIfBlock("substep_done > 0.5")
         self._add_substep_end(composition, fallback="vstep")
-        if substep_end is not None:
-            substep_end()
         self.endBlock()
-        if trial_end is not None:
-            self.beginIfBlock("trial_ready > 0.5")
-            trial_end()
-            self.endBlock()
         self.beginIfBlock("need_midpoint > 0.5")
-        midpoint_force("hsub", "alpha_sub")
+        self._add_midpoint_force("hsub", "alpha_sub")
         self.endBlock()
         self.endBlock()
+
+    def _add_next_stage_midpoint(self, composition: Composition) -> None:
+        """With more than one α stage: a sub-step just started on an α stage needs its midpoint iteration."""
+        if len(composition.alpha_stages) > 1:
+            self.addComputeGlobal("need_midpoint", "max(need_midpoint, next_stage_midpoint)")
+            self.addComputeGlobal("next_stage_midpoint", "0")
 
     # ---------------------------------------------------------------- stepping
     def step(self, steps: int) -> None:
