@@ -86,11 +86,6 @@ def energy_residuals(
     return trace
 
 
-def equal_cost_divisor(force_evaluations_per_step: float) -> int:
-    """Return k of "RATTLE at h/k costs the same": the force evaluations per step, rounded up."""
-    return max(1, math.ceil(force_evaluations_per_step - 1e-9))
-
-
 def convergence_order(step_sizes: np.ndarray, errors: np.ndarray) -> float:
     """Return the observed order of convergence: the least-squares slope of log(error) against log(h)."""
     return float(np.polyfit(np.log(step_sizes), np.log(errors), 1)[0])

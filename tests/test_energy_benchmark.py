@@ -65,7 +65,7 @@ def test_the_fixed_alpha_scan_runs_in_the_same_run(tmp_path, capsys, monkeypatch
     args = ["--system", "water-cluster", "--time", "0.01", "--json", str(out), "--only", "energy4"]
     assert main([*args, "--fixed-alpha", "0.01"]) == 0
     printed = capsys.readouterr().out
-    assert "vs best fixed" in printed
+    assert f"than {label('alpha4=0.01')} " in printed  # the energy mode against the best fixed alpha
     result = json.loads(out.read_text(encoding="utf-8"))["water-cluster"]
     names = [row["name"] for row in result["rows"]]
     assert label("alpha4=0.01") in names

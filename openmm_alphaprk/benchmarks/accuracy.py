@@ -44,7 +44,8 @@ from pathlib import Path
 import numpy as np
 import openmm.unit as unit
 
-from ..observables import block_average, degrees_of_freedom, equal_cost_divisor, rms, temperature
+from ..equal_cost import equal_cost_divisor
+from ..observables import block_average, degrees_of_freedom, rms, temperature
 from ..runs.accuracy import (
     REFERENCE_DIVISOR,
     REFERENCE_TOLERANCE,

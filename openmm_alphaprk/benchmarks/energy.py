@@ -30,12 +30,12 @@ import openmm as mm
 import openmm.unit as unit
 from tqdm import tqdm
 
+from ..equal_cost import equal_cost_divisor, gain, gain_text
 from ..observables import (
     alpha_percentiles,
     degrees_of_freedom,
     drift_text,
     energy_residuals,
-    equal_cost_divisor,
     fit_drift,
     rms,
 )
@@ -331,18 +331,18 @@ def ratios_to_rattle(rows: Sequence[EnergyRow]) -> dict[str, dict[str, float | s
     for row in rows:
         if rattle is None or row is rattle or row is equal or not row.rms_residual > 0:
             continue
-        entry: dict[str, float | str] = {"rms_vs_rattle": rattle.rms_residual / row.rms_residual}
+        entry: dict[str, float | str] = {"rms_vs_rattle": gain(rattle.rms_residual, row.rms_residual)}
         same_cost = equal is not None and equal_cost_divisor(row.force_evaluations_per_step) == round(
             equal.force_evaluations_per_step
         )
         if same_cost:
-            entry["rms_vs_rattle_equal_cost"] = equal.rms_residual / row.rms_residual
+            entry["rms_vs_rattle_equal_cost"] = gain(equal.rms_residual, row.rms_residual)
         if row.name in energy_labels:
             if composition_at_alpha_0 is not None:
-                entry["rms_vs_alpha4_0"] = composition_at_alpha_0.rms_residual / row.rms_residual
+                entry["rms_vs_alpha4_0"] = gain(composition_at_alpha_0.rms_residual, row.rms_residual)
             if best is not None:
                 entry["best_fixed_alpha"] = best.name
-                entry["rms_vs_best_fixed_alpha"] = best.rms_residual / row.rms_residual
+                entry["rms_vs_best_fixed_alpha"] = gain(best.rms_residual, row.rms_residual)
         ratios[row.name] = entry
     return ratios
 
@@ -377,20 +377,19 @@ def format_energy_table(rows: Sequence[EnergyRow], header: str = "") -> str:
 
 
 def format_ratios(rows: Sequence[EnergyRow]) -> str:
-    """One line per row: how many times RATTLE's RMS(H − E_ref) is the row's, at 2 fs and at equal cost."""
+    """One line per row: its RMS(H − E_ref) against RATTLE's, at the same step and at equal cost."""
     lines = [
-        "RMS(H - E_ref) of RATTLE / the row's (same step; at equal cost: RATTLE at h/k); for the energy "
-        "modes also alpha4=0's and the best fixed alpha's RMS / the row's (below 1: the baseline did better):"
+        "RMS(H - E_ref) of each row against RATTLE's at the same step, at equal cost (RATTLE at h/k) and, "
+        "for the energy modes, against alpha4=0's and the best fixed alpha's:"
     ]
     for name, entry in ratios_to_rattle(rows).items():
-        equal = entry.get("rms_vs_rattle_equal_cost")
-        line = f"  {name:<26} {entry['rms_vs_rattle']:8.2f}x" + (
-            f"   at equal cost {equal:6.2f}x" if equal is not None else ""
-        )
+        line = f"  {name:<26} {gain_text(entry['rms_vs_rattle']):>12} than RATTLE"
+        if "rms_vs_rattle_equal_cost" in entry:
+            line += f";  at equal cost {gain_text(entry['rms_vs_rattle_equal_cost'])}"
         if "rms_vs_alpha4_0" in entry:
-            line += f"   vs alpha4=0 {entry['rms_vs_alpha4_0']:6.2f}x"
+            line += f";  than alpha4=0 {gain_text(entry['rms_vs_alpha4_0'])}"
         if "rms_vs_best_fixed_alpha" in entry:
-            line += f"   vs best fixed ({entry['best_fixed_alpha']}) {entry['rms_vs_best_fixed_alpha']:6.2f}x"
+            line += f";  than {entry['best_fixed_alpha']} {gain_text(entry['rms_vs_best_fixed_alpha'])}"
         lines.append(line)
     return "\n".join(lines)
 

@@ -10,7 +10,8 @@ from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 from .._units import InputError
-from ..observables import VERLET_IS_LEAPFROG, drift_text, equal_cost_divisor
+from ..equal_cost import equal_cost_baselines, equal_cost_divisor, gain, gain_text
+from ..observables import VERLET_IS_LEAPFROG, drift_text
 from ..runs import RunOptions, RunSummary, run_nve, rundir
 from ..runs.accuracy import REFERENCE_DIVISOR, Horizon, short_horizon_errors
 from ..runs.integrator_names import IntegratorSpec, at_divisor, check_compatible, parse_integrator
@@ -190,36 +191,37 @@ def equal_cost_gains(
     """
     accuracy = accuracy or {}
     by_name = {summary.integrator: summary for summary in summaries}
+    baselines = equal_cost_baselines(
+        {s.integrator: s.force_evaluations_per_step for s in summaries if _costs_more_than_rattle(s)},
+        equal_cost_name,
+        by_name,
+    )
     gains = []
-    for summary in summaries:
-        if not _costs_more_than_rattle(summary):
-            continue
-        k = equal_cost_divisor(summary.force_evaluations_per_step)
-        rattle = by_name.get(equal_cost_name(k))
-        if rattle is not None:
-            gain = {
-                "integrator": summary.integrator,
-                "k": k,
-                "rattle_row": rattle.integrator,
-                "rms_residual": summary.rms_residual,
-                "rattle_rms_residual": rattle.rms_residual,
-                "gain": rattle.rms_residual / summary.rms_residual,
-            }
-            if summary.integrator in accuracy and rattle.integrator in accuracy:
-                mine, theirs = accuracy[summary.integrator], accuracy[rattle.integrator]
-                gain.update(
-                    position_time_fs=mine.time_fs,
-                    position_error=mine.position_rms,
-                    rattle_position_error=theirs.position_rms,
-                    position_gain=theirs.position_rms / mine.position_rms,
-                )
-            gains.append(gain)
+    for name, (k, baseline) in baselines.items():
+        summary, rattle = by_name[name], by_name[baseline]
+        entry = {
+            "integrator": name,
+            "k": k,
+            "rattle_row": baseline,
+            "rms_residual": summary.rms_residual,
+            "rattle_rms_residual": rattle.rms_residual,
+            "gain": gain(rattle.rms_residual, summary.rms_residual),
+        }
+        if name in accuracy and baseline in accuracy:
+            mine, theirs = accuracy[name], accuracy[baseline]
+            entry.update(
+                position_time_fs=mine.time_fs,
+                position_error=mine.position_rms,
+                rattle_position_error=theirs.position_rms,
+                position_gain=gain(theirs.position_rms, mine.position_rms),
+            )
+        gains.append(entry)
     return gains
 
 
 def _ratio_text(ratio: float) -> str:
     """Say a ratio of the baseline's error over the row's as lower or higher, never as '0.85x lower'."""
-    return f"{ratio:.3g}x lower" if ratio >= 1 else f"{1 / ratio:.3g}x higher: no gain at equal cost"
+    return gain_text(ratio, loss="{}: no gain at equal cost")
 
 
 def gain_line(gain: dict) -> str:
@@ -450,8 +452,8 @@ def format_comparison_table(
         lines += textwrap.wrap(controller_line(s.integrator, s.controller), _WRAP, subsequent_indent="  ")
     if controllers:
         lines += textwrap.wrap(CONTROLLER_NOTE, _WRAP)
-    for gain in gains:
-        lines += textwrap.wrap(gain_line(gain), _WRAP, subsequent_indent="  ")
+    for entry in gains:
+        lines += textwrap.wrap(gain_line(entry), _WRAP, subsequent_indent="  ")
     for s in summaries:
         if s.momentum_change:
             m = s.momentum_change

@@ -17,6 +17,7 @@ import json
 import math
 from pathlib import Path
 
+from openmm_alphaprk.equal_cost import gain_text
 from openmm_alphaprk.workflows.plots import plot_accuracy
 from tools.reports.markdown import markdown_table, update_page
 
@@ -86,9 +87,7 @@ def verdicts(result: dict) -> str:
 
 def _ratio(value: float) -> str:
     """Say how the energy mode's error compares, given the baseline's error over the energy mode's."""
-    if not math.isfinite(value) or value <= 0:
-        return "–"
-    return f"{value:.3g}× lower" if value >= 1 else f"**{1 / value:.3g}× higher**"
+    return gain_text(value, times="×", loss="**{}**")
 
 
 def equilibrium_table(result: dict) -> str:

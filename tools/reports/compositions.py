@@ -16,9 +16,9 @@ RATTLE at the h/r of equal CPU wall time; and draws
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 
+from openmm_alphaprk.equal_cost import gain_text
 from openmm_alphaprk.runs.integrator_names import label
 from openmm_alphaprk.workflows.plots import plot_accuracy
 from tools.reports.accuracy import rows_table
@@ -32,9 +32,7 @@ WEIGHED = ("alpha4=0", "rattle4+rescale", "energy4", "alpha6=0", "rattle6+rescal
 
 def _ratio(value: float) -> str:
     """Say the baseline's error over the row's: '3.1× lower' (the row wins) or '**2× higher**'."""
-    if not math.isfinite(value) or value <= 0:
-        return "–"
-    return f"{value:.3g}× lower" if value >= 1 else f"**{1 / value:.3g}× higher**"
+    return gain_text(value, times="×", loss="**{}**")
 
 
 def verdicts(result: dict) -> str:

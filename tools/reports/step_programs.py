@@ -27,7 +27,9 @@ PROGRAMS = {
         0.002, 0.01, composition="triple-jump"
     ),
     "AlphaRattleIntegrator(h, alpha='energy')": lambda: AlphaRattleIntegrator(0.002, "energy"),
-    "AlphaRattleIntegrator(h, alpha='energy', order=4)": lambda: AlphaRattleIntegrator(0.002, "energy", order=4),
+    "AlphaRattleIntegrator(h, alpha='energy', order=4)": lambda: AlphaRattleIntegrator(
+        0.002, "energy", order=4
+    ),
 }
 
 
