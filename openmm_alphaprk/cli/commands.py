@@ -70,12 +70,13 @@ def _prepare(name: str, args, rebuild: bool, specs=()):
     from ..systems import prepare_system
 
     platform = getattr(args, "platform", "CPU")
+    label = repr(str(getattr(args, "system", name)))
     return prepare_system(
         name,
         cache_dir=args.cache_dir,
         rebuild=rebuild,
         progress=not args.quiet,
-        check=lambda system: [check_compatible(spec, system, repr(str(name)), platform) for spec in specs],
+        check=lambda system: [check_compatible(spec, system, label, platform) for spec in specs],
     )
 
 
@@ -89,6 +90,39 @@ def _print_prepared(prepared) -> None:
         print(f"{prepared.name}: {prepared.n_atoms} atoms, cached in {prepared.path}")
 
 
+def _system(args, specs) -> tuple[str, object]:
+    """Return the system's short name and what ``run_nve``/``compare`` take: a name, or the prepared files.
+
+    A system given as files is read and made ready for NVE here; what changed is printed.
+    """
+    from ..systems.files import file_definition, file_options, given_file_options, is_system_file
+
+    if not is_system_file(args.system):
+        given = given_file_options(args)
+        if given:
+            raise InputError(
+                f"{' '.join(given)} apply to a system given as files (.prmtop, .psf, .top, .pdb, .cif, "
+                f".xml), not to {args.system!r}."
+            )
+        system = _prepare(args.system, args, rebuild=True, specs=specs) if args.rebuild else args.system
+        return str(args.system).removesuffix(".toml").rpartition("/")[2], system
+    definition = file_definition(args.system, file_options(args))
+    prepared = _prepare(definition, args, rebuild=args.rebuild, specs=specs)
+    print(_changes_text(prepared, args.as_is))
+    return prepared.name, prepared
+
+
+def _changes_text(prepared, as_is: bool) -> str:
+    """Say what was changed to make a user's files ready for NVE (or that nothing was)."""
+    head = f"{prepared.name}: {prepared.n_atoms} atoms from {prepared.definition.build['files']['system']}"
+    if as_is:
+        return head + "; the System as the files make it (--as-is)"
+    if not prepared.changes:
+        return head + "; ready for NVE as read (nothing changed)"
+    lines = [head + "; made ready for NVE (--as-is keeps the System untouched):"]
+    return "\n".join(lines + [f"  - {change}" for change in prepared.changes])
+
+
 def cmd_run(args) -> int:
     from ..runs import run_nve
     from ..runs.rundir import SUMMARY_FILE
@@ -96,8 +130,8 @@ def cmd_run(args) -> int:
 
     spec = parse_integrator(args.integrator)
     options = _run_options(args)
-    output = args.output or f"alphaprk-run-{args.system}-{run_directory_name(spec)}"
-    system = _prepare(args.system, args, rebuild=True, specs=[spec]) if args.rebuild else args.system
+    name, system = _system(args, [spec])
+    output = args.output or f"alphaprk-run-{name}-{run_directory_name(spec)}"
     summary = run_nve(system, spec, output, options)
     if args.json:
         print(json.dumps(summary.as_dict(), indent=2))
@@ -122,12 +156,12 @@ def cmd_compare(args) -> int:
 
     specs = [parse_integrator(name) for name in args.integrators]
     options = _run_options(args)
-    output = args.output or f"alphaprk-compare-{args.system}"
-    system = _prepare(args.system, args, rebuild=True, specs=specs) if args.rebuild else args.system
     if args.accuracy_steps < 0:
         raise InputError(
             f"--accuracy-steps must be 0 (none) or a positive number of steps, got {args.accuracy_steps}."
         )
+    name, system = _system(args, specs)
+    output = args.output or f"alphaprk-compare-{name}"
     result = compare(
         system,
         args.integrators,

@@ -7,8 +7,16 @@ import re
 
 from ..runs.integrator_names import INTEGRATOR_HELP, INTEGRATOR_NAMES
 from ..runs.options import DEFAULTS, PRECISIONS
+from ..systems.files import add_file_arguments
 from ..workflows.comparison import ACCURACY_STEPS, DEFAULT_INTEGRATORS, DEFAULT_SYSTEM, VERLET_NOTE
 from .quantities import positive
+
+SYSTEM_HELP = (
+    "system name (see `alphaprk systems`), a .toml definition, or the system's own files: AMBER "
+    ".prmtop/.parm7 (coordinates of the same stem or --coordinates), CHARMM .psf (--coordinates, "
+    "--params), GROMACS .top (.gro of the same stem), .pdb/.cif (--forcefield), OpenMM System .xml "
+    "(--state, --topology)"
+)
 
 #: ``alphaprk bench`` subcommands: the module whose ``main(argv)`` runs each.
 BENCHMARKS = {
@@ -76,7 +84,7 @@ def _add_run_parser(sub) -> None:
         ),
         epilog=f"Integrators: {INTEGRATOR_HELP}.",
     )
-    run.add_argument("system", help="system name (see `alphaprk systems`) or path to a .toml definition")
+    run.add_argument("system", help=SYSTEM_HELP)
     run.add_argument("integrator", help=f"one of {INTEGRATOR_NAMES} (see below)")
     run.add_argument(
         "-o",
@@ -91,6 +99,7 @@ def _add_run_parser(sub) -> None:
     )
     _add_rebuild(run)
     _add_run_options(run)
+    add_file_arguments(run)
 
 
 def _add_compare_parser(sub) -> None:
@@ -113,7 +122,7 @@ def _add_compare_parser(sub) -> None:
         epilog=f"Integrators: {INTEGRATOR_HELP}.",
     )
     comp.add_argument(
-        "system", nargs="?", default=DEFAULT_SYSTEM, help=f"system name (default {DEFAULT_SYSTEM})"
+        "system", nargs="?", default=DEFAULT_SYSTEM, help=f"{SYSTEM_HELP} (default {DEFAULT_SYSTEM})"
     )
     comp.add_argument(
         "-i",
@@ -145,6 +154,7 @@ def _add_compare_parser(sub) -> None:
     )
     _add_rebuild(comp)
     _add_run_options(comp)
+    add_file_arguments(comp)
 
 
 def _add_analyze_parser(sub) -> None:

@@ -65,9 +65,17 @@ def create_system(definition: SystemDefinition, topology: app.Topology, forcefie
 
 
 def equilibrate(
-    definition: SystemDefinition, system: mm.System, positions, *, progress: bool = False
+    definition: SystemDefinition,
+    system: mm.System,
+    positions,
+    *,
+    velocities=None,
+    progress: bool = False,
 ) -> mm.State:
     """Minimize, draw velocities and run seeded Langevin dynamics; return a consistent state.
+
+    ``velocities`` (nm/ps, e.g. from a user's restart file) are kept instead of drawn
+    where the protocol has no minimization and no Langevin steps.
 
     The protocol is the ``[equilibration]`` table: ``LocalEnergyMinimizer`` to
     ``minimize_tolerance_kJ_per_mol_nm`` (at most ``minimize_max_iterations``),
@@ -85,12 +93,16 @@ def equilibrate(
     integrator.setRandomNumberSeed(int(eq["seed"]))
     integrator.setConstraintTolerance(1e-10)
     context = mm.Context(system, integrator, mm.Platform.getPlatformByName(eq["platform"]))
+    context.setPeriodicBoxVectors(*system.getDefaultPeriodicBoxVectors())
     context.setPositions(positions)
     if eq["minimize_max_iterations"] > 0:
         mm.LocalEnergyMinimizer.minimize(
             context, float(eq["minimize_tolerance_kJ_per_mol_nm"]), int(eq["minimize_max_iterations"])
         )
-    context.setVelocitiesToTemperature(kelvin, int(eq["seed"]))
+    if velocities is not None and eq["minimize_max_iterations"] == 0 and eq["langevin_steps"] == 0:
+        context.setVelocities(velocities)
+    else:
+        context.setVelocitiesToTemperature(kelvin, int(eq["seed"]))
     _step_in_chunks(integrator, int(eq["langevin_steps"]), f"equilibrating {definition.name}", progress)
     context.applyConstraints(FINAL_CONSTRAINT_TOLERANCE)
     context.applyVelocityConstraints(FINAL_CONSTRAINT_TOLERANCE)

@@ -24,7 +24,8 @@ import openmm.app as app
 import openmm.unit as unit
 
 from .build import BUILDER_VERSION, build_model, create_system, equilibrate
-from .definitions import SystemDefinition, definition_key, load_definition
+from .definitions import BUILT_KINDS, SystemDefinition, definition_key, load_definition
+from .files import file_digests, load_files
 from .shipped import ShippedState, load_shipped_state
 
 #: Environment variable that overrides the cache folder.
@@ -51,6 +52,10 @@ class PreparedSystem:
     source
         ``"shipped"`` (the package's state), ``"cache"`` (read from the cache) or
         ``"built"`` (minimized and equilibrated by this call).
+    changes
+        What was changed to make a user's files ready for NVE (LJ switch, Ewald
+        tolerance, forces removed, hydrogen masses), one line each; empty for the
+        package's own systems, which are built ready.
     """
 
     name: str
@@ -61,6 +66,7 @@ class PreparedSystem:
     state: mm.State
     path: Path | None = None
     source: str = "built"
+    changes: tuple[str, ...] = ()
 
     @classmethod
     def from_shipped(cls, definition: SystemDefinition, shipped: ShippedState) -> PreparedSystem:
@@ -108,8 +114,8 @@ def default_cache_dir() -> Path:
 
 
 def system_key(definition: SystemDefinition) -> str:
-    """Cache key: the definition's content, the OpenMM version and :data:`BUILDER_VERSION`."""
-    return definition_key(definition, mm.__version__, BUILDER_VERSION)
+    """Cache key: the definition's content, the OpenMM version, :data:`BUILDER_VERSION` and the files read."""
+    return definition_key(definition, mm.__version__, BUILDER_VERSION, *file_digests(definition))
 
 
 def cache_path(definition: SystemDefinition, cache_dir: str | os.PathLike | None = None) -> Path:
@@ -199,8 +205,14 @@ def _build(
 
     With ``replace`` an existing entry at ``path`` is replaced, else it is kept.
     """
-    topology, positions, forcefield = build_model(definition)
-    system = create_system(definition, topology, forcefield)
+    velocities, changes = None, []
+    if definition.build["kind"] in BUILT_KINDS:
+        topology, positions, forcefield = build_model(definition)
+        system = create_system(definition, topology, forcefield)
+    else:
+        loaded = load_files(definition)
+        topology, system, positions = loaded.topology, loaded.system, loaded.positions
+        velocities, changes = loaded.velocities, loaded.changes
     if check is not None:
         check(system)
     if progress:
@@ -212,8 +224,10 @@ def _build(
             flush=True,
         )
     start = time.perf_counter()
-    state = equilibrate(definition, system, positions, progress=progress)
-    prepared = PreparedSystem(definition.name, definition, key, topology, system, state, path)
+    state = equilibrate(definition, system, positions, velocities=velocities, progress=progress)
+    prepared = PreparedSystem(
+        definition.name, definition, key, topology, system, state, path, changes=tuple(changes)
+    )
     if path is not None:
         _write(prepared, path, build_seconds=time.perf_counter() - start, replace=replace)
     return prepared
@@ -239,6 +253,7 @@ def _write(prepared: PreparedSystem, path: Path, build_seconds: float, replace: 
             "builder_version": BUILDER_VERSION,
             "n_atoms": prepared.n_atoms,
             "equilibration_seconds": round(build_seconds, 2),
+            "changes": list(prepared.changes),
         }
         (tmp / "definition.json").write_text(json.dumps(meta, indent=2), encoding="utf-8")
         # state.xml last: its presence marks a complete entry
@@ -272,7 +287,17 @@ def _read(path: Path, definition: SystemDefinition, key: str) -> PreparedSystem:
         raise RuntimeError(
             f"cache entry {path} is inconsistent (topology and system sizes differ); delete it."
         )
-    return PreparedSystem(definition.name, definition, key, topology, system, state, path, source="cache")
+    return PreparedSystem(
+        definition.name,
+        definition,
+        key,
+        topology,
+        system,
+        state,
+        path,
+        source="cache",
+        changes=tuple(meta.get("changes", ())),
+    )
 
 
 def is_cached(definition: SystemDefinition, cache_dir: str | os.PathLike | None = None) -> bool:

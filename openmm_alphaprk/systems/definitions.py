@@ -26,7 +26,9 @@ else:  # pragma: no cover - Python 3.10
 
 DEFINITIONS_DIR = Path(__file__).parent
 
-KINDS = ("water_box", "water_cluster", "pdb")
+#: Built by the package from a force field; the kinds of a user's files are in :mod:`.files`.
+BUILT_KINDS = ("water_box", "water_cluster", "pdb")
+KINDS = (*BUILT_KINDS, "amber", "charmm", "gromacs", "pdb_files", "openmm_xml")
 NONBONDED_METHODS = ("PME", "NoCutoff")
 CONSTRAINTS = ("none", "HBonds")
 
@@ -118,6 +120,10 @@ def load_definition(name: str) -> SystemDefinition:
     DefinitionError
         If the file is invalid.
     """
+    from .files import file_definition, is_system_file
+
+    if is_system_file(name):
+        return file_definition(name)
     path = Path(name)
     if path.suffix != ".toml":
         path = DEFINITIONS_DIR / f"{name}.toml"
@@ -130,11 +136,15 @@ def load_definition(name: str) -> SystemDefinition:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
     except tomllib.TOMLDecodeError as error:
         raise DefinitionError(f"{path} is not valid TOML: {error}") from None
-    return parse_definition(data, path.stem)
+    return parse_definition(data, path.stem, base=path.parent)
 
 
-def parse_definition(data: dict[str, Any], name: str) -> SystemDefinition:
-    """Validate the tables of a definition and return it."""
+def parse_definition(data: dict[str, Any], name: str, base: Path | None = None) -> SystemDefinition:
+    """Validate the tables of a definition and return it.
+
+    The files of a file kind (:mod:`.files`) are made absolute from ``base`` (the
+    definition file's folder; default the current directory) and must exist.
+    """
     for table in ("build", "equilibration"):
         if not isinstance(data.get(table), dict):
             raise DefinitionError(f"system {name!r}: missing [{table}] table.")
@@ -142,6 +152,13 @@ def parse_definition(data: dict[str, Any], name: str) -> SystemDefinition:
     kind = build.get("kind")
     if kind not in KINDS:
         raise DefinitionError(f"system {name!r}: build.kind must be one of {KINDS}, got {kind!r}.")
+    if kind not in BUILT_KINDS:
+        from .files import check_file_build
+
+        check_file_build(name, build, Path.cwd() if base is None else base)
+        _check_keys(name, "equilibration", equilibration, _EQUILIBRATION_KEYS)
+        equilibration.setdefault("zero_momentum", False)
+        return SystemDefinition(name, str(data.get("description", "")), build, equilibration)
     _check_keys(name, "build", build, {"forcefield": list, **_BUILD_KEYS[kind]})
     _check_keys(name, "equilibration", equilibration, _EQUILIBRATION_KEYS)
     method = build.setdefault("nonbonded_method", "PME")
