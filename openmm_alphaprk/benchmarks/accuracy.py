@@ -44,6 +44,7 @@ from pathlib import Path
 import numpy as np
 import openmm.unit as unit
 
+from ..cli.system_files import add_file_arguments, system_to_prepare, unknown_systems
 from ..equal_cost import equal_cost_divisor
 from ..observables import block_average, degrees_of_freedom, rms, temperature
 from ..runs.accuracy import (
@@ -473,6 +474,7 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--timing-rounds", type=int, default=3, help="interleaved timing rounds (default 3)")
     parser.add_argument("--json", help="write the results here, after every row (resumes finished systems)")
     parser.add_argument("--figure", help="also plot the position errors against time into this PNG")
+    add_file_arguments(parser)
     return parser
 
 
@@ -480,7 +482,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Command-line entry point."""
     parser = _parser()
     args = parser.parse_args(argv)
-    unknown = [name for name in args.system if name not in list_systems()]
+    unknown = unknown_systems(args.system)
     if unknown:
         parser.error(f"unknown system(s) {unknown}; choose from {', '.join(list_systems())}")
     if min(args.horizons) < 1 or args.timestep <= 0:
@@ -506,7 +508,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         if system in results.get("systems", {}):
             print(f"{system}: done in {args.json}, skipped", file=sys.stderr)
             continue
-        prepared = prepare_system(system, progress=True)
+        prepared = prepare_system(system_to_prepare(system, args), progress=True)
+        for change in prepared.changes:
+            print(f"{prepared.name}: {change}", file=sys.stderr)
         if not prepared.system.usesPeriodicBoundaryConditions():
             prepared = with_rigid_motion(prepared, CLUSTER_TRANSLATION, CLUSTER_ROTATION)
         partial_rows: list[dict] = []

@@ -30,6 +30,7 @@ import openmm as mm
 import openmm.unit as unit
 from tqdm import tqdm
 
+from ..cli.system_files import add_file_arguments, system_to_prepare, unknown_systems
 from ..equal_cost import equal_cost_divisor, gain, gain_text
 from ..observables import (
     alpha_percentiles,
@@ -454,6 +455,7 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--traces", help="also write H - E_ref per step of every integrator to this .npz file"
     )
+    add_file_arguments(parser)
     return parser
 
 
@@ -473,8 +475,7 @@ def _check_arguments(parser: argparse.ArgumentParser, args: argparse.Namespace) 
     if args.system:
         if len(set(args.system)) < len(args.system):
             parser.error(f"--system: a system named twice in {args.system}")
-        known = set(list_systems())
-        unknown = [name for name in args.system if name not in known]
+        unknown = unknown_systems(args.system)
         if unknown:
             parser.error(f"unknown system(s) {unknown}; choose from {', '.join(list_systems())}")
 
@@ -499,7 +500,9 @@ def _benchmark_starts(args: argparse.Namespace) -> list[tuple[PreparedSystem, st
         ]
     starts = []
     for name in args.system:
-        prepared = prepare_system(name, progress=True)
+        prepared = prepare_system(system_to_prepare(name, args), progress=True)
+        for change in prepared.changes:
+            print(f"{prepared.name}: {change}", file=sys.stderr)
         # the contexts take the box from the System: make it the equilibrated state's
         prepared.system.setDefaultPeriodicBoxVectors(*prepared.state.getPeriodicBoxVectors())
         description = prepared.definition.description or "see alphaprk systems"

@@ -95,7 +95,8 @@ def _system(args, specs) -> tuple[str, object]:
 
     A system given as files is read and made ready for NVE here; what changed is printed.
     """
-    from ..systems.files import file_definition, file_options, given_file_options, is_system_file
+    from ..systems.files import file_definition, is_system_file
+    from .system_files import file_options, given_file_options
 
     if not is_system_file(args.system):
         given = given_file_options(args)

@@ -20,7 +20,6 @@ A definition file (``*.toml``) may name the same kinds::
 
 from __future__ import annotations
 
-import argparse
 import hashlib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -339,120 +338,6 @@ def repartition_hydrogen_mass(
     return [
         f"hydrogen mass repartitioned: {changed} hydrogens set to {mass:g} amu, taken from their heavy atoms"
     ]
-
-
-def add_file_arguments(parser: argparse.ArgumentParser) -> None:
-    """Add the options of :class:`FileOptions` to a command that takes a system name or file."""
-    group = parser.add_argument_group(
-        "a system given as files (.prmtop/.parm7, .psf, .top, .pdb/.cif, .xml) instead of a name"
-    )
-    group.add_argument(
-        "--coordinates",
-        help="coordinates (.inpcrd/.rst7/.ncrst, .crd, .gro, .pdb); "
-        "default: the topology's stem with such an extension",
-    )
-    group.add_argument(
-        "--params", nargs="+", default=(), metavar="FILE", help="CHARMM parameter files (.prm, .rtf, .str)"
-    )
-    group.add_argument(
-        "--forcefield",
-        nargs="+",
-        default=(),
-        metavar="XML",
-        help="force-field XMLs for a PDB/PDBx file, e.g. amber14-all.xml amber14/tip3p.xml",
-    )
-    group.add_argument("--include-dir", help="GROMACS include directory of the force-field files")
-    group.add_argument(
-        "--state", help="serialized openmm.State (positions, box, velocities) for a System .xml"
-    )
-    group.add_argument("--topology", help="PDB topology of a System .xml (for trajectories and analysis)")
-    group.add_argument(
-        "--box",
-        nargs=3,
-        type=float,
-        metavar=("A", "B", "C"),
-        help="box edges in nm where the coordinates have none",
-    )
-    group.add_argument(
-        "--constraints",
-        choices=sorted(CONSTRAINT_CHOICES),
-        default="HBonds",
-        help="constraints where a reader creates the System (default HBonds, with rigid water)",
-    )
-    group.add_argument(
-        "--hydrogen-mass",
-        type=float,
-        metavar="AMU",
-        help="hydrogen mass repartitioning (e.g. 3 for a 4 fs step), total mass kept",
-    )
-    group.add_argument(
-        "--as-is",
-        action="store_true",
-        help="keep the System as the files make it (no LJ switch, Ewald tolerance, removals)",
-    )
-    group.add_argument(
-        "--temperature",
-        type=float,
-        default=300.0,
-        help="K: velocities drawn where the files have none (default 300)",
-    )
-    group.add_argument(
-        "--seed", type=int, default=2024, help="seed of the drawn velocities and equilibration"
-    )
-    group.add_argument(
-        "--equilibrate",
-        default=None,
-        metavar="TIME",
-        help="a seeded Langevin equilibration first, with a unit: 10ps (cached)",
-    )
-    group.add_argument("--cutoff", type=float, default=0.9, help="PME cutoff in nm (default 0.9)")
-
-
-def file_options(args: argparse.Namespace) -> FileOptions:
-    """Return the :class:`FileOptions` of parsed :func:`add_file_arguments` options."""
-    equilibrate = 0.0
-    if args.equilibrate:
-        from ..cli.quantities import parse_time
-
-        equilibrate = parse_time(args.equilibrate, "--equilibrate")
-    return FileOptions(
-        coordinates=args.coordinates,
-        params=tuple(args.params),
-        forcefield=tuple(args.forcefield),
-        include_dir=args.include_dir,
-        state=args.state,
-        topology=args.topology,
-        box_nm=tuple(args.box) if args.box else None,
-        constraints=args.constraints,
-        hydrogen_mass_amu=args.hydrogen_mass,
-        as_is=args.as_is,
-        temperature_K=args.temperature,
-        seed=args.seed,
-        equilibrate_ps=equilibrate,
-        cutoff_nm=args.cutoff,
-    )
-
-
-def given_file_options(args: argparse.Namespace) -> list[str]:
-    """Return the file options given on a command line (to refuse them with a system name)."""
-    defaults = FileOptions()
-    given = []
-    for option, value, default in (
-        ("--coordinates", args.coordinates, None),
-        ("--params", tuple(args.params), ()),
-        ("--forcefield", tuple(args.forcefield), ()),
-        ("--include-dir", args.include_dir, None),
-        ("--state", args.state, None),
-        ("--topology", args.topology, None),
-        ("--box", args.box, None),
-        ("--constraints", args.constraints, defaults.constraints),
-        ("--hydrogen-mass", args.hydrogen_mass, None),
-        ("--as-is", args.as_is, False),
-        ("--equilibrate", args.equilibrate, None),
-    ):
-        if value not in (default, None, ()):
-            given.append(option)
-    return given
 
 
 # ---------------------------------------------------------------- readers
