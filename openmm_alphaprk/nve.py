@@ -21,7 +21,20 @@ from .smooth_forces import (
     warn_listing,
 )
 
-__all__ = ["StateChangingForceWarning", "prepare_for_nve", "state_changing_forces", "warn_if_state_changing"]
+__all__ = [
+    "LargeStepWarning",
+    "StateChangingForceWarning",
+    "prepare_for_nve",
+    "state_changing_forces",
+    "step_size_problem",
+    "warn_if_state_changing",
+]
+
+#: Largest step (fs) with hydrogens of natural mass on constrained X–H bonds; with repartitioned ones.
+LARGEST_STEP_FS = 2.5
+LARGEST_STEP_REPARTITIONED_FS = 4.5
+#: A particle lighter than this (amu) is a hydrogen of natural mass; 3–4 amu after repartitioning.
+LIGHT_HYDROGEN_AMU = 2.0
 
 _BAROSTATS = tuple(
     getattr(mm, name)
@@ -41,6 +54,40 @@ _NOT_APPLIED = (
     "VerletIntegrator, and the energy mode has not: it holds the energy of its reference state, which "
     "these forces change by design)"
 )
+
+
+class LargeStepWarning(UserWarning):
+    """The step is above what the System's lightest hydrogens allow (see :func:`step_size_problem`)."""
+
+
+def step_size_problem(system: mm.System, timestep_ps: float) -> str | None:
+    """Say why ``timestep_ps`` is too large for ``system``'s hydrogens, or return None.
+
+    Hydrogens of natural mass outside rigid water (those in an H–H constraint) limit a
+    RATTLE-type step with constrained X–H bonds to about 2.5 fs; repartitioned to 3–4
+    amu (hydrogen mass repartitioning) to about 4 fs. Rigid water alone is fine at 4 fs.
+    """
+    masses = [system.getParticleMass(i).value_in_unit(unit.dalton) for i in range(system.getNumParticles())]
+    rigid_water = set()
+    for k in range(system.getNumConstraints()):
+        i, j, _ = system.getConstraintParameters(k)
+        if max(masses[i], masses[j]) < LIGHT_HYDROGEN_AMU:
+            rigid_water |= {i, j}
+    light = [i for i, m in enumerate(masses) if 0 < m < LIGHT_HYDROGEN_AMU and i not in rigid_water]
+    step_fs = timestep_ps * 1000.0
+    if light and step_fs > LARGEST_STEP_FS:
+        return (
+            f"a {step_fs:g} fs step with {len(light)} hydrogen(s) of {min(masses[i] for i in light):.3g} amu "
+            f"outside rigid water: their X–H vibrations limit the step to about {LARGEST_STEP_FS:g} fs. For "
+            "3–4 fs repartition the hydrogen masses (alphaprk --hydrogen-mass 3; "
+            "createSystem(..., hydrogenMass=3*amu)), or use a step of 2 fs"
+        )
+    if step_fs > LARGEST_STEP_REPARTITIONED_FS:
+        return (
+            f"a {step_fs:g} fs step is above about {LARGEST_STEP_REPARTITIONED_FS:g} fs, the limit even with "
+            "rigid water and repartitioned hydrogen masses; use 4 fs or less"
+        )
+    return None
 
 
 class StateChangingForceWarning(UserWarning):

@@ -30,6 +30,7 @@ __all__ = [
     "SMOOTH_EWALD_TOLERANCE",
     "NonSmoothForcesWarning",
     "make_smooth",
+    "polarizable_forces",
     "smoothness_problems",
     "warn_if_not_smooth",
 ]
@@ -64,6 +65,26 @@ def _has_cutoff(force: mm.Force) -> bool:
 
 def _nm(quantity: unit.Quantity | float) -> float:
     return quantity.value_in_unit(unit.nanometers) if unit.is_quantity(quantity) else float(quantity)
+
+
+def polarizable_forces(system: mm.System) -> list[str]:
+    """List the forces whose energy is converged to a tolerance, not a smooth function of the positions.
+
+    Drude particles (``DrudeForce``) and AMOEBA's or HIPPO's mutual induced dipoles are
+    found by an iteration (OpenMM's self-consistent solvers, or a Drude integrator's),
+    stopped at a tolerance: the energy holds their error, and the energy mode, which
+    chooses α to put H back to E_ref, would chase that error.
+    """
+    found = []
+    for index, force in enumerate(system.getForces()):
+        name = type(force).__name__
+        if name == "DrudeForce":
+            found.append(f"{label_force(index, force)}: Drude particles")
+        elif name == "AmoebaMultipoleForce" and force.getPolarizationType() == force.Mutual:
+            found.append(f"{label_force(index, force)}: mutual induced dipoles (AMOEBA)")
+        elif name == "HippoNonbondedForce":
+            found.append(f"{label_force(index, force)}: induced dipoles (HIPPO)")
+    return found
 
 
 def smoothness_problems(system: mm.System) -> list[str]:

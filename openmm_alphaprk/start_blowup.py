@@ -98,7 +98,8 @@ def _message(integrator: mm.CustomIntegrator, original: str) -> str:
     else:
         large = (
             f"too large a step (this one is {step_fs:g} fs): about 2 fs is the limit with constraints on "
-            "bonds to hydrogen (SETTLE, HBonds), about 1 fs without"
+            "bonds to hydrogen (SETTLE, HBonds), about 1 fs without, about 4 fs with hydrogen masses "
+            "repartitioned to 3–4 amu (--hydrogen-mass 3)"
         )
     return (
         f"{name} blew up in its first {START_STEPS} steps, which points at the start rather than at "

@@ -20,6 +20,7 @@ import json
 import os
 import sys
 import time
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -29,6 +30,7 @@ import openmm.unit as unit
 from tqdm import tqdm
 
 from ..integrators import check_context
+from ..nve import LargeStepWarning, step_size_problem
 from ..systems import PreparedSystem, prepare_system
 from . import rundir
 from .checkpoints import (
@@ -163,6 +165,9 @@ def prepare_run(
     """
     platform, properties = options.openmm_platform()
     prepared = _prepare_system(system, spec, options)
+    problem = step_size_problem(prepared.system, options.timestep_ps)
+    if problem is not None:
+        warnings.warn(f"{prepared.name}: {problem}.", LargeStepWarning, stacklevel=3)
     parameters = rundir.run_parameters(prepared, spec, options)
     stored = rundir.check_run_directory(output, parameters)
     resume = stored is not None and (output / rundir.CHECKPOINT_FILE).is_file()

@@ -60,6 +60,7 @@ from ..integrators import (
 from ..integrators.compositions import COMPOSITIONS
 from ..observables import VERLET_IS_LEAPFROG
 from ..platforms import massless_particles
+from ..smooth_forces import polarizable_forces
 
 
 @dataclass(frozen=True)
@@ -340,9 +341,20 @@ def check_compatible(
     ------
     IncompatibleSystemError
         If ``system`` has massless particles (virtual sites) and ``spec`` cannot be
-        right for them on ``platform`` (see :meth:`IntegratorSpec.supports_virtual_sites`).
+        right for them on ``platform`` (see :meth:`IntegratorSpec.supports_virtual_sites`),
+        or ``spec`` is an energy mode and ``system`` has polarizable forces
+        (:func:`~openmm_alphaprk.smooth_forces.polarizable_forces`).
     """
     spec = parse_integrator(spec)
+    if spec.kind == "energy":
+        polarizable = polarizable_forces(system)
+        if polarizable:
+            raise IncompatibleSystemError(
+                f"integrator {spec.name!r} cannot run {system_name}: {'; '.join(polarizable)}. Their energy "
+                "is converged to a tolerance, not a smooth function of the positions, and the energy mode "
+                "would chase that error instead of holding H. Instead use rattle, rattle+rescale or a fixed "
+                "alpha (alpha4=0)."
+            )
     if spec.supports_virtual_sites(platform):
         return
     massless = len(massless_particles(system))

@@ -442,7 +442,8 @@ def _read_openmm_xml(name: str, build: dict[str, Any]):
         app.PDBFile(files["topology"]).topology if "topology" in files else _topology_from_masses(system)
     )
     if system.usesPeriodicBoundaryConditions():
-        topology.setPeriodicBoxVectors(system.getDefaultPeriodicBoxVectors())
+        vectors = system.getDefaultPeriodicBoxVectors()
+        topology.setPeriodicBoxVectors([v.value_in_unit(unit.nanometers) for v in vectors] * unit.nanometers)
     return topology, system, positions, velocities
 
 
