@@ -292,3 +292,30 @@ def _masses(system: mm.System) -> np.ndarray:
     return np.array(
         [system.getParticleMass(i).value_in_unit(unit.dalton) for i in range(system.getNumParticles())]
     )
+
+
+def test_tip4pew_files_get_the_virtual_site_refusal_for_the_energy_mode_with_exit_status_2(tmp_path):
+    """Through the installed script: the process's exit status and a message without a traceback."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    forcefield = app.ForceField("amber14/tip4pew.xml")
+    modeller = app.Modeller(app.Topology(), [])
+    modeller.addSolvent(forcefield, model="tip4pew", boxSize=mm.Vec3(2.0, 2.0, 2.0) * unit.nanometers)
+    with open(tmp_path / "tip4pew.pdb", "w") as handle:
+        app.PDBFile.writeFile(modeller.topology, modeller.positions, handle)
+    script = Path(sys.executable).with_name("alphaprk")
+    result = subprocess.run(
+        [str(script), "run", "tip4pew.pdb", "energy4", "--forcefield", "amber14/tip4pew.xml", "--steps", "2"],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env={**__import__("os").environ, "ALPHAPRK_CACHE_DIR": str(tmp_path / "cache")},
+    )
+    assert result.returncode == 2, result.stderr
+    assert "Traceback" not in result.stderr
+    assert "integrator 'energy4' cannot run 'tip4pew.pdb'" in result.stderr
+    assert "massless particle(s)" in result.stderr and "alphaprk run tip4pew.pdb verlet" in result.stderr
+    assert not list(tmp_path.glob("alphaprk-run-*"))
