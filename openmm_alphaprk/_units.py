@@ -1,8 +1,13 @@
-"""Conversion of user input at the package's edges to plain numbers in OpenMM's units."""
+"""Conversion of user input at the package's edges to plain numbers in OpenMM's units.
+
+Quantities as Python objects (:func:`to_float`) and as text with a unit, as command lines
+write them (:func:`parse_time`: ``2fs``, :func:`parse_length`: ``8A``).
+"""
 
 from __future__ import annotations
 
 import math
+import re
 
 import openmm.unit as unit
 
@@ -72,3 +77,37 @@ def _checked_float(value: object, name: str, positive: bool, expected: str, symb
     if positive and number <= 0.0:
         raise InputError(f"{name} must be positive, got {number}{symbol}.")
     return number
+
+
+# ---------------------------------------------------------------- quantities written as text
+_TIME_UNITS = {"fs": 1e-3, "ps": 1.0, "ns": 1e3}
+_LENGTH_UNITS = {"a": 1.0, "å": 1.0, "angstrom": 1.0, "nm": 10.0}
+
+
+class QuantityError(InputError):
+    """A command-line quantity with a missing or wrong unit."""
+
+
+def parse_time(text: str, option: str) -> float:
+    """Parse ``2fs``, ``2 fs``, ``0.002ps`` or ``1ns`` into picoseconds."""
+    return _parse(text, option, _TIME_UNITS, "a time", "fs, ps or ns")
+
+
+def parse_length(text: str, option: str) -> float:
+    """Parse ``8A``, ``8 Å`` or ``0.8nm`` into Ångström."""
+    return _parse(text, option, _LENGTH_UNITS, "a length", "A (Ångström) or nm")
+
+
+def _parse(text: str, option: str, units: dict[str, float], what: str, allowed: str) -> float:
+    match = re.fullmatch(r"\s*([-+]?[0-9.]+(?:[eE][-+]?[0-9]+)?)\s*([^\s0-9]*)\s*", str(text))
+    if not match:
+        raise QuantityError(f"{option} {text!r} is not a number with a unit; write e.g. 2fs or 0.8nm.")
+    value, symbol = float(match.group(1)), match.group(2)
+    if not symbol:
+        raise QuantityError(f"{option} {text!r} has no unit; give {what} with a unit ({allowed}), e.g. 2fs.")
+    factor = units.get(symbol.lower())
+    if factor is None:
+        raise QuantityError(f"{option} {text!r}: {symbol!r} is not a unit of {what}; use {allowed}.")
+    if not value > 0:
+        raise QuantityError(f"{option} must be positive, got {text!r}.")
+    return value * factor

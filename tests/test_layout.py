@@ -24,6 +24,7 @@ LAYERS = {
     "nve": 0,
     "start_blowup": 0,
     "observables": 0,
+    "equal_cost": 0,
     "integrators": 1,
     "__init__": 1,  # the public API: the integrators and the precondition helpers
     "systems": 2,

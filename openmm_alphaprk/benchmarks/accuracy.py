@@ -44,7 +44,6 @@ from pathlib import Path
 import numpy as np
 import openmm.unit as unit
 
-from ..cli.system_files import add_file_arguments, system_to_prepare, unknown_systems
 from ..equal_cost import equal_cost_divisor
 from ..observables import block_average, degrees_of_freedom, rms, temperature
 from ..runs.accuracy import (
@@ -60,6 +59,7 @@ from ..runs.accuracy import (
 )
 from ..runs.integrator_names import SubStepped, at_divisor, label, parse_integrator
 from ..systems import PreparedSystem, list_systems, prepare_system
+from ..systems.arguments import add_file_arguments, system_to_prepare, unknown_systems
 from .cost import interleaved_timing
 
 #: Integrator names of the rows at h (the first is the baseline of the time ratios).

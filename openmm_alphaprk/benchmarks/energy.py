@@ -30,7 +30,6 @@ import openmm as mm
 import openmm.unit as unit
 from tqdm import tqdm
 
-from ..cli.system_files import add_file_arguments, system_to_prepare, unknown_systems
 from ..equal_cost import equal_cost_divisor, gain, gain_text
 from ..observables import (
     alpha_percentiles,
@@ -42,6 +41,7 @@ from ..observables import (
 )
 from ..runs.integrator_names import SubStepped, at_divisor, label, make_integrator
 from ..systems import PreparedSystem, build_water_box, list_systems, prepare_system
+from ..systems.arguments import add_file_arguments, system_to_prepare, unknown_systems
 from .cost import _context, add_box_arguments, build_platform, interleaved_timing, platform_properties
 
 

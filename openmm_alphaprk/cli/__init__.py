@@ -2,7 +2,7 @@
 
 - :mod:`.parser`: :func:`build_parser`, one ``_add_*_parser`` per command.
 - :mod:`.commands`: one ``cmd_*`` per command, a call of the library and its printout.
-- :mod:`.quantities`: times and lengths with units (``2fs``, ``8A``).
+- times and lengths with units (``2fs``, ``8A``): :mod:`openmm_alphaprk._units`.
 
 :func:`main` runs a command and turns the errors the user can fix into one line on
 stderr (exit status 2), a run that blew up into exit status 1, Ctrl-C into exit status
@@ -17,11 +17,10 @@ from collections.abc import Sequence
 
 import openmm as mm
 
-from .._units import InputError, InputTypeError
+from .._units import InputError, InputTypeError, QuantityError, parse_length, parse_time
 from ..systems import UnknownSystemError
 from .commands import COMMANDS
 from .parser import build_parser
-from .quantities import QuantityError, parse_length, parse_time
 
 __all__ = ["QuantityError", "build_parser", "main", "parse_length", "parse_time"]
 

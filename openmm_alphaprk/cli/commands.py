@@ -7,12 +7,11 @@ import json
 import sys
 from pathlib import Path
 
-from .._units import InputError
+from .._units import InputError, QuantityError, parse_length, parse_time
 from ..observables import drift_text
 from ..runs.integrator_names import parse_integrator
 from ..runs.options import DEFAULTS, RunOptions
 from .parser import BENCHMARKS
-from .quantities import QuantityError, parse_length, parse_time
 
 
 def _steps(args) -> tuple[int, float]:
@@ -95,8 +94,8 @@ def _system(args, specs) -> tuple[str, object]:
 
     A system given as files is read and made ready for NVE here; what changed is printed.
     """
+    from ..systems.arguments import file_options, given_file_options
     from ..systems.files import file_definition, is_system_file
-    from .system_files import file_options, given_file_options
 
     if not is_system_file(args.system):
         given = given_file_options(args)

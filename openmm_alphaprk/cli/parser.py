@@ -7,9 +7,9 @@ import re
 
 from ..runs.integrator_names import INTEGRATOR_HELP, INTEGRATOR_NAMES
 from ..runs.options import DEFAULTS, PRECISIONS
+from ..systems.arguments import add_file_arguments
 from ..workflows.comparison import ACCURACY_STEPS, DEFAULT_INTEGRATORS, DEFAULT_SYSTEM, VERLET_NOTE
 from .quantities import positive
-from .system_files import add_file_arguments
 
 SYSTEM_HELP = (
     "system name (see `alphaprk systems`), a .toml definition, or the system's own files: AMBER "

@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import argparse
 
-from ..systems.definitions import SystemDefinition
-from ..systems.files import CONSTRAINT_CHOICES, FileOptions, file_definition, is_system_file
-from .quantities import parse_time
+from .._units import parse_time
+from .definitions import SystemDefinition
+from .files import CONSTRAINT_CHOICES, FileOptions, file_definition, is_system_file
 
 
 def add_file_arguments(parser: argparse.ArgumentParser) -> None:
