@@ -319,3 +319,51 @@ def test_tip4pew_files_get_the_virtual_site_refusal_for_the_energy_mode_with_exi
     assert "integrator 'energy4' cannot run 'tip4pew.pdb'" in result.stderr
     assert "massless particle(s)" in result.stderr and "alphaprk run tip4pew.pdb verlet" in result.stderr
     assert not list(tmp_path.glob("alphaprk-run-*"))
+
+
+def test_equilibrate_runs_a_seeded_langevin_first_and_caches_the_start(water_files, tmp_path):
+    folder, prepared = water_files
+    options = FileOptions(forcefield=TIP3P, equilibrate_ps=0.02, seed=3)
+    definition = file_definition(folder / "water.pdb", options)
+    assert (
+        definition.equilibration["langevin_steps"] == 10
+        and definition.equilibration["minimize_max_iterations"]
+    )
+    first = prepare_system(definition, cache_dir=tmp_path / "cache")
+    again = prepare_system(file_definition(folder / "water.pdb", options), cache_dir=tmp_path / "cache")
+    assert (first.source, again.source) == ("built", "cache")
+    assert np.array_equal(first.positions, again.positions)
+    assert np.abs(first.positions - prepared.positions).max() > 1e-3  # moved by minimization and dynamics
+    plain = prepare_system(
+        file_definition(folder / "water.pdb", FileOptions(forcefield=TIP3P)), use_cache=False
+    )
+    assert first.key != plain.key
+
+
+def test_a_start_that_blows_up_gets_the_start_blow_up_message(water_files, tmp_path):
+    folder, prepared = water_files
+    text = (folder / "water.pdb").read_text().splitlines()
+    atoms = [i for i, line in enumerate(text) if line.startswith(("ATOM", "HETATM"))]
+    first, second = text[atoms[0]], text[atoms[3]]  # the first two oxygens: 0.05 nm apart
+    x = float(first[30:38]) + 0.5
+    text[atoms[3]] = second[:30] + f"{x:8.3f}" + first[38:54] + second[54:]
+    (tmp_path / "clash.pdb").write_text("\n".join(text) + "\n")
+    text[atoms[3]] = second[:30] + first[30:54] + second[54:]  # on top of each other
+    (tmp_path / "overlap.pdb").write_text("\n".join(text) + "\n")
+    with pytest.raises(DefinitionError, match="non-finite energy .* atoms on top of each other"):
+        prepare_system(
+            file_definition(tmp_path / "overlap.pdb", FileOptions(forcefield=TIP3P)), use_cache=False
+        )
+    from openmm_alphaprk.runs import RunFailedError
+
+    with pytest.raises(RunFailedError, match=r"blew up in its first 100 steps.*unminimized start"):
+        run_nve(
+            prepare_system(
+                file_definition(tmp_path / "clash.pdb", FileOptions(forcefield=TIP3P)), use_cache=False
+            ),
+            "rattle",
+            tmp_path / "run",
+            steps=100,
+            energy_interval=10,
+            progress=False,
+        )

@@ -119,6 +119,11 @@ def equilibrate(
     context.setStepCount(0)
     state = context.getState(getPositions=True, getVelocities=True, getEnergy=True, getParameters=True)
     energy = (state.getPotentialEnergy() + state.getKineticEnergy()).value_in_unit(unit.kilojoules_per_mole)
+    if not np.isfinite(energy) and eq["minimize_max_iterations"] == 0 and eq["langevin_steps"] == 0:
+        raise DefinitionError(
+            f"the start of {definition.name!r} as read has a non-finite energy ({energy}): atoms on top of "
+            "each other, or coordinates that do not belong to this topology; check the coordinates."
+        )
     if not np.isfinite(energy):
         raise FloatingPointError(
             f"equilibration of {definition.name!r} ended with a non-finite energy ({energy}); "
