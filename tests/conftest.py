@@ -93,3 +93,17 @@ def analysed_blocks(integrator: mm.CustomIntegrator) -> int:
         elif kind in _INVALIDATES or variable == "x" or _FORCE_OR_ENERGY.search(expression):
             open_blocks = [True] * len(open_blocks)
     return count
+
+
+@pytest.fixture
+def ctrl_c_raises():
+    """SIGINT raises KeyboardInterrupt in this process, as after Python starts in a terminal.
+
+    A process started with SIGINT ignored (``nohup``, a script's background job) keeps it
+    ignored, and a test that sends itself SIGINT would see nothing.
+    """
+    import signal
+
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, previous)

@@ -353,6 +353,15 @@ def test_output_directory_with_a_different_run_is_refused(tmp_path, cache, quick
     assert (tmp_path / "papers" / "draft.tex").read_text(encoding="utf-8") == "keep me"
 
 
+def _ctrl_c_as_in_a_terminal() -> None:
+    """In the child: SIGINT's default disposition, which Python turns into KeyboardInterrupt.
+
+    A shell starts the background jobs of a script (and ``nohup``/``&`` starts pytest) with
+    SIGINT ignored, which a child inherits and Python then leaves ignored.
+    """
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def test_ctrl_c_checkpoints_and_says_from_which_step_the_same_command_resumes(tmp_path, cache):
     """SIGINT (Ctrl-C) long before the first step-count checkpoint: the work is kept, and said to be."""
     source = (DEFINITIONS_DIR / "water-cluster.toml").read_text(encoding="utf-8")
@@ -371,7 +380,12 @@ def test_ctrl_c_checkpoints_and_says_from_which_step_the_same_command_resumes(tm
     env = {**os.environ, "ALPHAPRK_CACHE_DIR": str(cache)}
     subprocess.run([*map(str, args), "-o", "whole"], cwd=tmp_path, env=env, check=True, capture_output=True)
     process = subprocess.Popen(
-        [*map(str, args), "-o", "parts"], cwd=tmp_path, env=env, stderr=subprocess.PIPE, text=True
+        [*map(str, args), "-o", "parts"],
+        cwd=tmp_path,
+        env=env,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=_ctrl_c_as_in_a_terminal,
     )
     energies = tmp_path / "parts" / "energies.csv"
     deadline = time.monotonic() + 120

@@ -80,7 +80,7 @@ def test_alpha_zero_gives_rattle_energies(box, tmp_path):
     ],
 )
 def test_interrupted_run_resumes_to_the_uninterrupted_result(
-    request, tmp_path, system, integrator, extra, stop, resumes_from
+    request, tmp_path, system, integrator, extra, stop, resumes_from, ctrl_c_raises
 ):
     """On the Reference platform (deterministic); the energy mode keeps E_ref over the restart."""
     prepared = request.getfixturevalue(system)

@@ -281,8 +281,18 @@ def load_files(definition: SystemDefinition) -> LoadedFiles:
             f"{system.getNumParticles()} particles; give the topology (PDB) of this System."
         )
     changes = []
-    if build["kind"] == "openmm_xml" and build.get("hydrogen_mass_amu") is not None:
-        changes += repartition_hydrogen_mass(system, float(build["hydrogen_mass_amu"]), topology)
+    mass = build.get("hydrogen_mass_amu")
+    if mass is not None and build["kind"] == "openmm_xml":
+        changes += repartition_hydrogen_mass(system, float(mass), topology)
+    elif mass is not None:
+        count = sum(
+            abs(system.getParticleMass(i).value_in_unit(unit.dalton) - float(mass)) < 1e-9
+            for i in range(system.getNumParticles())
+        )
+        changes.append(
+            f"hydrogen mass repartitioned (the reader's hydrogenMass): {count} hydrogens set to "
+            f"{float(mass):g} amu, taken from their heavy atoms"
+        )
     if build["prepare_for_nve"]:
         from ..nve import prepare_for_nve
 
