@@ -14,7 +14,8 @@ from pathlib import Path
 import openmm.app as app
 
 from openmm_alphaprk.systems import PreparedSystem, prepare_system, water_box_definition
-from openmm_alphaprk.systems.shipped import load_shipped_state, write_shipped_state
+from openmm_alphaprk.systems.ship import write_shipped_state
+from openmm_alphaprk.systems.shipped import load_shipped_state
 
 #: The tests' water box: ~550-atom TIP3P box (1.8 nm, PME, 0.8 nm cutoff), equilibrated on
 #: Reference, which makes it the same on every run (the multithreaded CPU platform's force

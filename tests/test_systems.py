@@ -114,7 +114,7 @@ def test_main_system_starts_from_the_shipped_state_bit_for_bit_without_building(
 
 
 def test_every_shipped_state_matches_its_definition_and_system():
-    """A definition changed without `python -m openmm_alphaprk.systems.shipped NAME` fails here."""
+    """A definition changed without `python -m openmm_alphaprk.systems.ship NAME` fails here."""
     records = sorted(STATES_DIR.glob("*.json"))
     assert SHIPPED <= {record.stem for record in records}
     for record in records:

@@ -20,34 +20,27 @@ the SHA-256 of every atom's residue, name and element); if they differ, the stat
 not used and :func:`load_shipped_state` warns (:class:`ShippedStateWarning`).
 
 A changed definition has another key and finds no shipped state: it is built, never
-started from a stale state. ``python -m openmm_alphaprk.systems.shipped NAME ...``
-builds the named systems and writes their shipped files (for the package's
-maintainers, after a definition changed).
+started from a stale state. The writer of these files is :mod:`.ship`
+(``python -m openmm_alphaprk.systems.ship NAME ...``, for the package's maintainers,
+after a definition changed).
 """
 
 from __future__ import annotations
 
-import argparse
 import gzip
 import hashlib
 import json
 import os
 import sys
-import tempfile
 import warnings
-from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import openmm as mm
 import openmm.app as app
 
 from .build import BUILDER_VERSION, build_model, create_system
-from .definitions import SystemDefinition, definition_key, load_definition
-
-if TYPE_CHECKING:
-    from .cache import PreparedSystem
+from .definitions import SystemDefinition, definition_key
 
 #: Folder of the shipped states (package data).
 STATES_DIR = Path(__file__).parent / "states"
@@ -141,64 +134,3 @@ def _stacklevel_outside_package() -> int:
     while frame.f_back is not None and os.path.abspath(frame.f_code.co_filename).startswith(_PACKAGE_DIR):
         frame, level = frame.f_back, level + 1
     return level
-
-
-def write_shipped_state(prepared: PreparedSystem, directory: Path | None = None) -> Path:
-    """Write ``prepared``'s start state as ``NAME.xml.gz`` and its record ``NAME.json`` in ``directory``.
-
-    ``directory`` defaults to :data:`STATES_DIR`. The gzip header carries no time
-    stamp, so the same state gives the same bytes. Returns the path of the
-    ``.xml.gz`` file.
-    """
-    directory = STATES_DIR if directory is None else Path(directory)
-    directory.mkdir(parents=True, exist_ok=True)
-    name = prepared.definition.name
-    path = directory / f"{name}.xml.gz"
-    xml = mm.XmlSerializer.serialize(prepared.state).encode("utf-8")
-    with tempfile.NamedTemporaryFile(dir=directory, delete=False) as raw:
-        with gzip.GzipFile(filename="", mode="wb", fileobj=raw, compresslevel=9, mtime=0) as handle:
-            handle.write(xml)
-    Path(raw.name).chmod(0o644)  # NamedTemporaryFile makes it private; package data is world-readable
-    Path(raw.name).replace(path)
-    meta = {
-        "name": name,
-        "key": shipped_key(prepared.definition),
-        "definition": prepared.definition.as_dict(),
-        "builder_version": BUILDER_VERSION,
-        "openmm_version": mm.__version__,
-        "n_atoms": prepared.n_atoms,
-        "topology_sha256": topology_fingerprint(prepared.topology),
-    }
-    (directory / f"{name}.json").write_text(json.dumps(meta, indent=2) + "\n", encoding="utf-8")
-    return path
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """Build the named systems and write their shipped states (``python -m`` this module)."""
-    from .cache import prepare_system
-
-    parser = argparse.ArgumentParser(
-        prog="python -m openmm_alphaprk.systems.shipped",
-        description="Build systems from their definitions (minimize, equilibrate) and write their start "
-        "states as the package's shipped states.",
-    )
-    parser.add_argument("systems", nargs="+", help="system names or .toml paths")
-    parser.add_argument("--output", type=Path, default=None, help=f"folder (default {STATES_DIR})")
-    parser.add_argument("--cache-dir", default=None, help="cache the builds there too (default: not cached)")
-    args = parser.parse_args(argv)
-    for name in args.systems:
-        definition = load_definition(name)
-        prepared = prepare_system(
-            definition,
-            cache_dir=args.cache_dir,
-            use_cache=args.cache_dir is not None,
-            rebuild=True,
-            progress=True,
-        )
-        path = write_shipped_state(prepared, args.output)
-        print(f"{definition.name}: {prepared.n_atoms} atoms -> {path} ({path.stat().st_size} bytes)")
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
