@@ -21,33 +21,37 @@ from openmm_alphaprk import AlphaRattleIntegrator
 from openmm_alphaprk.observables import total_energy
 from openmm_alphaprk.systems import build_water_box
 
-first, last, platform_spec, out = int(sys.argv[1]), int(sys.argv[2]), sys.argv[3], Path(sys.argv[4])
-out.mkdir(parents=True, exist_ok=True)
+
+def main() -> None:
+    first, last, platform_spec, out = int(sys.argv[1]), int(sys.argv[2]), sys.argv[3], Path(sys.argv[4])
+    out.mkdir(parents=True, exist_ok=True)
+
+    def run(box, spec: str) -> tuple[float, float]:
+        name, _, precision = spec.partition(":")
+        integrator = AlphaRattleIntegrator(2 * unit.femtoseconds, "energy", order=4)
+        properties = {"Precision": precision} if precision else {}
+        context = mm.Context(box.system, integrator, mm.Platform.getPlatformByName(name), properties)
+        context.setPeriodicBoxVectors(*box.state.getPeriodicBoxVectors())
+        context.setPositions(box.positions)
+        context.setVelocities(box.velocities)
+        start = total_energy(context)
+        residuals = []
+        for _ in range(60):
+            integrator.step(10)
+            residuals.append(total_energy(context) - start)
+        fell_back = integrator.controller_totals()["fraction_fallen_back"]
+        return float(np.sqrt(np.mean(np.square(residuals)))), fell_back
+
+    for seed in range(first, last + 1):
+        box = build_water_box(1.7, cutoff=0.8, equilibration_steps=500, seed=seed, platform="CPU")
+        (out / f"start_{seed}.xml").write_text(mm.XmlSerializer.serialize(box.state), encoding="utf-8")
+        rms, fell_back = run(box, platform_spec)
+        print(f"seed {seed} {platform_spec}: RMS {rms:.4f} kJ/mol, fell back {fell_back:.2f}", flush=True)
+        if rms > 0.02:
+            for spec in (platform_spec, "CPU", platform_spec.partition(":")[0] + ":double"):
+                rms, fell_back = run(box, spec)
+                print(f"  same start, {spec}: RMS {rms:.4f} kJ/mol, fell back {fell_back:.2f}", flush=True)
 
 
-def run(box, spec: str) -> tuple[float, float]:
-    name, _, precision = spec.partition(":")
-    integrator = AlphaRattleIntegrator(2 * unit.femtoseconds, "energy", order=4)
-    properties = {"Precision": precision} if precision else {}
-    context = mm.Context(box.system, integrator, mm.Platform.getPlatformByName(name), properties)
-    context.setPeriodicBoxVectors(*box.state.getPeriodicBoxVectors())
-    context.setPositions(box.positions)
-    context.setVelocities(box.velocities)
-    start = total_energy(context)
-    residuals = []
-    for _ in range(60):
-        integrator.step(10)
-        residuals.append(total_energy(context) - start)
-    fell_back = integrator.controller_totals()["fraction_fallen_back"]
-    return float(np.sqrt(np.mean(np.square(residuals)))), fell_back
-
-
-for seed in range(first, last + 1):
-    box = build_water_box(1.7, cutoff=0.8, equilibration_steps=500, seed=seed, platform="CPU")
-    (out / f"start_{seed}.xml").write_text(mm.XmlSerializer.serialize(box.state), encoding="utf-8")
-    rms, fell_back = run(box, platform_spec)
-    print(f"seed {seed} {platform_spec}: RMS {rms:.4f} kJ/mol, fell back {fell_back:.2f}", flush=True)
-    if rms > 0.02:
-        for spec in (platform_spec, "CPU", platform_spec.partition(":")[0] + ":double"):
-            rms, fell_back = run(box, spec)
-            print(f"  same start, {spec}: RMS {rms:.4f} kJ/mol, fell back {fell_back:.2f}", flush=True)
+if __name__ == "__main__":
+    main()

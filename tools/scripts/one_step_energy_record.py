@@ -22,35 +22,39 @@ from openmm_alphaprk import AlphaRattleIntegrator
 from openmm_alphaprk.observables import total_energy
 from openmm_alphaprk.systems import prepare_system
 
-name, steps, out = sys.argv[1], int(sys.argv[2]), sys.argv[3]
-delta = float(sys.argv[4]) if len(sys.argv) > 4 else 0.02
-prepared = prepare_system(name)
-platform = mm.Platform.getPlatformByName("CPU")
+
+def main() -> None:
+    name, steps, out = sys.argv[1], int(sys.argv[2]), sys.argv[3]
+    delta = float(sys.argv[4]) if len(sys.argv) > 4 else 0.02
+    prepared = prepare_system(name)
+    platform = mm.Platform.getPlatformByName("CPU")
+
+    def context(integrator):
+        c = mm.Context(prepared.system, integrator, platform)
+        c.setPeriodicBoxVectors(*prepared.state.getPeriodicBoxVectors())
+        c.setPositions(prepared.positions)
+        c.setVelocities(prepared.velocities)
+        return c
+
+    main = AlphaRattleIntegrator(2 * unit.femtoseconds, alpha=0.0, order=4)
+    probe = AlphaRattleIntegrator(2 * unit.femtoseconds, alpha=delta, order=4)
+    main_context, probe_context = context(main), context(probe)
+    rows, start = [], time.time()
+    for n in range(steps):
+        state = main_context.getState(getPositions=True, getVelocities=True, getEnergy=True)
+        before = total_energy(state)
+        probe_context.setState(state)
+        probe.step(1)
+        main.step(1)
+        after = total_energy(main_context)
+        rows.append([before, after - before, (total_energy(probe_context) - after) / delta])
+        if n % 100 == 0:
+            print(f"step {n}, {time.time() - start:.0f} s", flush=True)
+    rows = np.array(rows)
+    np.save(out, rows)
+    d0_rms, s_rms = np.sqrt(np.mean(rows[:, 1:] ** 2, axis=0))
+    print(f"{name}: D0 RMS {d0_rms:.4g} kJ/mol, S RMS {s_rms:.4g}")
 
 
-def context(integrator):
-    c = mm.Context(prepared.system, integrator, platform)
-    c.setPeriodicBoxVectors(*prepared.state.getPeriodicBoxVectors())
-    c.setPositions(prepared.positions)
-    c.setVelocities(prepared.velocities)
-    return c
-
-
-main = AlphaRattleIntegrator(2 * unit.femtoseconds, alpha=0.0, order=4)
-probe = AlphaRattleIntegrator(2 * unit.femtoseconds, alpha=delta, order=4)
-main_context, probe_context = context(main), context(probe)
-rows, start = [], time.time()
-for n in range(steps):
-    state = main_context.getState(getPositions=True, getVelocities=True, getEnergy=True)
-    before = total_energy(state)
-    probe_context.setState(state)
-    probe.step(1)
-    main.step(1)
-    after = total_energy(main_context)
-    rows.append([before, after - before, (total_energy(probe_context) - after) / delta])
-    if n % 100 == 0:
-        print(f"step {n}, {time.time() - start:.0f} s", flush=True)
-rows = np.array(rows)
-np.save(out, rows)
-d0_rms, s_rms = np.sqrt(np.mean(rows[:, 1:] ** 2, axis=0))
-print(f"{name}: D0 RMS {d0_rms:.4g} kJ/mol, S RMS {s_rms:.4g}")
+if __name__ == "__main__":
+    main()
