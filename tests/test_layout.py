@@ -93,3 +93,24 @@ def test_the_import_walker_resolves_relative_and_absolute_imports():
         "__init__",
     }
     assert LAYERS["runs"] > LAYERS["integrators"]
+
+
+SCRIPTS = sorted((PACKAGE.parent / "tools" / "scripts").glob("*.py"))
+
+
+@pytest.mark.parametrize("path", SCRIPTS, ids=lambda p: p.name)
+def test_a_script_does_its_work_only_when_run(path):
+    """Importing a script of tools/scripts defines things; its work is under ``if __name__ == "__main__"``."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    definitions = (ast.Import, ast.ImportFrom, ast.FunctionDef, ast.ClassDef, ast.Assign, ast.AnnAssign)
+    guarded = False
+    for node in tree.body:
+        if isinstance(node, ast.If) and "__main__" in ast.unparse(node.test):
+            guarded = True
+            continue
+        docstring = isinstance(node, ast.Expr) and isinstance(node.value, ast.Constant)
+        assert isinstance(node, definitions) or docstring, f"{path.name}:{node.lineno} runs at import"
+        if isinstance(node, (ast.Assign, ast.AnnAssign)):
+            calls = [n for n in ast.walk(node) if isinstance(n, ast.Call)]
+            assert not any("argv" in ast.unparse(c) for c in calls), f"{path.name}:{node.lineno} reads argv"
+    assert guarded, f"{path.name} has no if __name__ == '__main__' block"

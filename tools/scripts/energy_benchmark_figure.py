@@ -11,15 +11,16 @@ from __future__ import annotations
 
 import sys
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
 import numpy as np
 
 
 def main(traces_path: str, figure_path: str) -> None:
     """Two panels: every row on a common scale, and the α-RATTLE-4 rows close up."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
     traces = np.load(traces_path)
     step_ps = float(traces["timestep_ps"])
     names = [name for name in traces.files if name != "timestep_ps"]

@@ -17,9 +17,6 @@ give near-identical files (Reference/CPU platform results may still differ in la
 import os
 
 import numpy as np
-
-# Some hosts have a broken OpenCL driver; addHydrogens/addSolvent use the default platform.
-os.environ.setdefault("OPENMM_DEFAULT_PLATFORM", "CPU")
 import openmm
 import parmed
 from openmm import app, unit
@@ -190,6 +187,8 @@ def energy(system, positions, box=None):
 
 
 def main():
+    # some hosts have a broken OpenCL driver; addHydrogens/addSolvent use the default platform
+    os.environ.setdefault("OPENMM_DEFAULT_PLATFORM", "CPU")
     ff = app.ForceField("amber14-all.xml", "amber14/tip3p.xml")
 
     # ---------------- 1. peptide: build, hydrogens, solvate, minimize, short Langevin
