@@ -62,6 +62,9 @@ def test_totals_give_the_rms_and_maximum_of_every_step():
     assert totals["rms_residual"] == pytest.approx(np.sqrt(np.mean(measured**2)), rel=1e-6, abs=1e-9)
     assert totals["max_abs_residual"] == pytest.approx(np.max(np.abs(measured)), rel=1e-6, abs=1e-9)
     assert totals["max_abs_residual"] > 0
+    for count in ("within_tolerance", "fallen_back", "at_bound"):
+        assert totals[f"fraction_{count}"] == totals[f"steps_{count}"] / 40
+    assert totals["steps_within_tolerance"] + totals["steps_fallen_back"] == 40
 
 
 def test_a_chosen_midpoint_tolerance_is_kept_without_a_box():

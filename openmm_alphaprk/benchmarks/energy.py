@@ -145,7 +145,7 @@ def _run_one(
         row.alpha_percentiles = alpha_percentiles(alphas)
         row.fraction_within_tolerance = totals["fraction_within_tolerance"]
         row.fraction_fallen_back = totals["fraction_fallen_back"]
-        row.fraction_at_bound = totals["steps_at_bound"] / max(totals["steps"], 1)
+        row.fraction_at_bound = totals["fraction_at_bound"]
         row.reference_resets = totals["reference_resets"]
     return row, residuals, integrator, context
 

@@ -777,8 +777,8 @@ class AlphaRattleEnergyIntegrator(_ReferenceEnergy, AlphaRattleIntegrator):
         A dict with ``steps``, ``steps_within_tolerance``, ``steps_fallen_back``,
         ``steps_at_bound``, ``reference_resets``, ``steps_restored`` (order 4: steps
         that ended in an earlier trial's state, see ``_add_best_trial_restore``; 0 at
-        order 2) (counts), the fractions
-        ``fraction_within_tolerance`` and ``fraction_fallen_back``,
+        order 2) (counts), the fractions of the steps
+        ``fraction_within_tolerance``, ``fraction_fallen_back`` and ``fraction_at_bound``,
         ``force_evaluations_per_step``, and ``rms_residual`` and ``max_abs_residual``:
         RMS and maximum of H − E_ref after each step (kJ/mol; NaN before the first step),
         accumulated inside the step program, so that a reporter need not read the state
@@ -810,6 +810,7 @@ class AlphaRattleEnergyIntegrator(_ReferenceEnergy, AlphaRattleIntegrator):
             **totals,
             "fraction_within_tolerance": fraction(totals["steps_within_tolerance"]),
             "fraction_fallen_back": fraction(totals["steps_fallen_back"]),
+            "fraction_at_bound": fraction(totals["steps_at_bound"]),
             "force_evaluations_per_step": self.force_evaluations_per_step,
             "rms_residual": fraction(squares) ** 0.5 if steps else float("nan"),
             "max_abs_residual": self.getGlobalVariableByName("max_abs_residual") if steps else float("nan"),

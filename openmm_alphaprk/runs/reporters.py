@@ -310,7 +310,7 @@ def summarize_controller(
         residuals_over=EVERY_STEP if every_step else ROWS,
         fraction_within_tolerance=within,
         fraction_fallen_back=float(totals["fraction_fallen_back"]) if totals else float(np.mean(rows[:, 7])),
-        fraction_at_bound=totals["steps_at_bound"] / max(steps, 1) if totals else float(np.mean(rows[:, 8])),
+        fraction_at_bound=float(totals["fraction_at_bound"]) if totals else float(np.mean(rows[:, 8])),
         force_evaluations_per_step=float(totals["force_evaluations_per_step"])
         if totals
         else float(np.mean(rows[:, 6])),
