@@ -10,6 +10,7 @@ import openmm.unit as unit
 import pytest
 from quick_systems import StopAt, quick_system
 
+from openmm_alphaprk.nve import LargeStepWarning
 from openmm_alphaprk.runs import RunFailedError, RunInterrupted, run_nve, rundir
 from openmm_alphaprk.runs.integrator_names import UnknownIntegratorError, make_integrator, parse_integrator
 from openmm_alphaprk.runs.rundir import RunDirectoryError
@@ -195,7 +196,10 @@ def test_bad_input_is_refused_before_work(box, tmp_path):
 
 
 def test_blow_up_stops_with_a_clear_error_and_keeps_the_output(box, tmp_path):
-    with pytest.raises(RunFailedError, match="output up to then is kept"):
+    with (
+        pytest.raises(RunFailedError, match="output up to then is kept"),
+        pytest.warns(LargeStepWarning, match="a 50 fs step is above about 4.5 fs"),
+    ):
         run_nve(box, "verlet", tmp_path, steps=200, timestep=0.05, energy_interval=1, progress=False)
     assert rundir.read_energies(tmp_path / rundir.ENERGIES_FILE).shape[0] >= 1
 
@@ -208,7 +212,7 @@ def test_blow_up_says_where_it_stopped_and_whether_a_checkpoint_exists(box, tmp_
     import openmm.app as app
 
     blow_up = dict(steps=200, timestep=0.05, energy_interval=1, progress=False)
-    with pytest.raises(RunFailedError) as none:
+    with pytest.raises(RunFailedError) as none, pytest.warns(LargeStepWarning):
         run_nve(box, "verlet", tmp_path / "none", **blow_up)
     message = str(none.value)
     assert re.search(r"stopped at step \d+ of 200 with VerletIntegrator", message), message
@@ -216,7 +220,7 @@ def test_blow_up_says_where_it_stopped_and_whether_a_checkpoint_exists(box, tmp_
     assert message.endswith("no checkpoint was written.")
     assert not (tmp_path / "none" / rundir.CHECKPOINT_FILE).exists()
     # a checkpoint every step: the message names the step of the one on disk
-    with pytest.raises(RunFailedError) as some:
+    with pytest.raises(RunFailedError) as some, pytest.warns(LargeStepWarning):
         run_nve(
             box, "verlet", tmp_path / "some", **blow_up | {"energy_interval": 3, "checkpoint_interval": 1}
         )

@@ -21,7 +21,12 @@ from functools import partial
 
 import openmm as mm
 
-from ..integrators import PACKAGE_INTEGRATORS, check_context
+from ..integrators import (
+    PACKAGE_INTEGRATORS,
+    check_context,
+    counted_force_evaluations,
+    force_evaluations_per_step,
+)
 from ..observables import energy_residuals, rms
 from ..runs.integrator_names import label, make_integrator
 from ..systems import PreparedSystem, build_water_box
@@ -171,7 +176,9 @@ def _timed_rows(runs: dict, steps: int, rounds: int, progress: bool) -> list[Ben
     """Time the integrators of ``runs`` (name → (integrator, context)) in interleaved rounds."""
     for integrator, _ in runs.values():
         integrator.step(2)  # program analysis and first force evaluations
-    evaluations_before = {name: _force_evaluations(integrator) for name, (integrator, _) in runs.items()}
+    evaluations_before = {
+        name: counted_force_evaluations(integrator) for name, (integrator, _) in runs.items()
+    }
     syncs_before = {name: _host_syncs(integrator) for name, (integrator, _) in runs.items()}
     medians = interleaved_timing(
         {name: (integrator, 1) for name, (integrator, _) in runs.items()}, steps, rounds, progress
@@ -179,9 +186,13 @@ def _timed_rows(runs: dict, steps: int, rounds: int, progress: bool) -> list[Ben
     rows = []
     baseline = medians[next(iter(medians))]
     for name, (integrator, _) in runs.items():
-        evaluations = _force_evaluations(integrator)
+        evaluations = counted_force_evaluations(integrator)
         timed = steps * rounds
-        per_step = (evaluations - evaluations_before[name]) / timed if evaluations is not None else 1.0
+        per_step = (
+            (evaluations - evaluations_before[name]) / timed
+            if evaluations is not None
+            else force_evaluations_per_step(integrator)
+        )
         syncs = (_host_syncs(integrator) - syncs_before[name]) / timed
         ms = medians[name]
         rows.append(BenchmarkRow(name, ms, ms / baseline, per_step, float("nan"), host_syncs_per_step=syncs))
@@ -196,13 +207,6 @@ def _energy_rms(box: PreparedSystem, integrator: mm.Integrator, context_args: tu
     """RMS of H − E0 (kJ/mol) over ``steps`` steps, the energy read after every step."""
     context = _context(box, integrator, *context_args)
     return rms(energy_residuals(context, integrator, steps).residuals)
-
-
-def _force_evaluations(integrator: mm.Integrator) -> int | None:
-    """Force evaluations counted by this package's integrators; None for others (one per step)."""
-    if isinstance(integrator, PACKAGE_INTEGRATORS):
-        return integrator.force_evaluations
-    return None
 
 
 def _host_syncs(integrator: mm.Integrator) -> float:

@@ -31,6 +31,7 @@ import openmm.unit as unit
 from tqdm import tqdm
 
 from ..equal_cost import equal_cost_divisor, gain, gain_text
+from ..integrators import force_evaluations_per_step
 from ..observables import (
     alpha_percentiles,
     degrees_of_freedom,
@@ -137,7 +138,7 @@ def _run_one(
         drift_per_dof_standard_error=drift_error,
         rms_residual=rms(residuals[done]),
         max_abs_residual=float(np.max(np.abs(residuals[done]))) if done.any() else float("nan"),
-        force_evaluations_per_step=_evaluations_per_step(integrator) * spec.substeps,
+        force_evaluations_per_step=force_evaluations_per_step(integrator) * spec.substeps,
         blew_up_at_step=blew_up,
     )
     if energy_mode:
@@ -148,10 +149,6 @@ def _run_one(
         row.fraction_at_bound = totals["fraction_at_bound"]
         row.reference_resets = totals["reference_resets"]
     return row, residuals, integrator, context
-
-
-def _evaluations_per_step(integrator: mm.Integrator) -> float:
-    return getattr(integrator, "force_evaluations_per_step", 1.0)
 
 
 #: |H − E_ref| (kJ/mol) above which a run counts as blown up.

@@ -41,10 +41,17 @@ from .pieces import (
 )
 from .rattle import RattleIntegrator
 from .rescale import RattleRescaleIntegrator, VelocityRescaleError
-from .restore import PACKAGE_INTEGRATORS, restore_integrator
+from .restore import (
+    PACKAGE_INTEGRATORS,
+    counted_force_evaluations,
+    force_evaluations_per_step,
+    restore_integrator,
+)
 
 __all__ = [
     "PACKAGE_INTEGRATORS",
+    "counted_force_evaluations",
+    "force_evaluations_per_step",
     "AlphaRattleEnergyIntegrator",
     "AlphaRattleIntegrator",
     "IncompatibleSystemError",

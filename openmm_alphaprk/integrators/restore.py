@@ -20,6 +20,16 @@ PACKAGE_INTEGRATORS = (RattleIntegrator, RattleRescaleIntegrator, AlphaRattleInt
 _CLASSES_BY_KIND: dict[int, type[_StepProgram]] = {cls._kind: cls for cls in PACKAGE_INTEGRATORS}
 
 
+def counted_force_evaluations(integrator: mm.Integrator) -> int | None:
+    """Return the force evaluations this package's integrator has counted; None for any other."""
+    return integrator.force_evaluations if isinstance(integrator, PACKAGE_INTEGRATORS) else None
+
+
+def force_evaluations_per_step(integrator: mm.Integrator) -> float:
+    """Return the mean force evaluations per step: counted by ours, one for others (``VerletIntegrator``)."""
+    return integrator.force_evaluations_per_step if isinstance(integrator, PACKAGE_INTEGRATORS) else 1.0
+
+
 def restore_integrator(
     integrator: mm.Integrator,
 ) -> RattleIntegrator | RattleRescaleIntegrator | AlphaRattleIntegrator:

@@ -11,7 +11,11 @@ import openmm as mm
 import openmm.app as app
 import openmm.unit as unit
 
-from ..integrators import PACKAGE_INTEGRATORS, AlphaRattleEnergyIntegrator, RattleRescaleIntegrator
+from ..integrators import (
+    AlphaRattleEnergyIntegrator,
+    RattleRescaleIntegrator,
+    force_evaluations_per_step,
+)
 from ..observables import (
     VERLET_IS_LEAPFROG,
     EnergyDrift,
@@ -91,9 +95,7 @@ def summarize(
     momentum_change = {}
     if not prepared.system.usesPeriodicBoundaryConditions():  # isolated: P and L are invariants
         momentum_change = _momentum_change(prepared, state, output)
-    evaluations = (
-        integrator.force_evaluations_per_step if isinstance(integrator, PACKAGE_INTEGRATORS) else 1.0
-    )
+    evaluations = force_evaluations_per_step(integrator)
     simulated_ns = steps_this_call * timestep_ps / 1000.0
     return RunSummary(
         system=prepared.name,
