@@ -58,8 +58,13 @@ class CheckpointReporter:
     checkpoint whole.
     """
 
-    def __init__(self, path: Path, interval: int, seconds: float, last_step: int | None) -> None:
+    def __init__(
+        self, path: Path, interval: int, seconds: float, last_step: int | None, previous: Path | None = None
+    ) -> None:
         self.path, self._interval, self._seconds = path, interval, seconds
+        self.previous = (
+            previous if previous is not None else path.with_name(path.stem + ".previous" + path.suffix)
+        )
         self.last_step = last_step
         self._written = time.monotonic()
 
@@ -73,9 +78,16 @@ class CheckpointReporter:
         self.save(simulation)
 
     def save(self, simulation: app.Simulation) -> None:
-        """Write a checkpoint of the current state (call it between steps, after the step's reports)."""
+        """Write a checkpoint of the current state (call it between steps, after the step's reports).
+
+        The last one is kept as ``previous`` (the run directory's
+        ``checkpoint.previous.chk``): should the new one be damaged, a resume loses one
+        interval.
+        """
         temporary = self.path.with_name(self.path.name + ".part")
         temporary.write_bytes(simulation.context.createCheckpoint())
+        if self.path.is_file():
+            os.replace(self.path, self.previous)
         os.replace(temporary, self.path)
         self.last_step = simulation.currentStep
         self._written = time.monotonic()

@@ -64,6 +64,7 @@ class _Run:
     platform: mm.Platform
     properties: dict[str, str]
     resume: bool
+    lock: object = None  # the open lock file of the run directory (rundir.lock_run_directory)
 
 
 def run_nve(
@@ -116,11 +117,17 @@ def run_nve(
     """
     spec = parse_integrator(integrator)
     run = prepare_run(system, spec, Path(output), RunOptions.build(options, **keywords))
-    simulation = _simulation(run)
-    start_step = _restore(simulation, run) if run.resume else _start(simulation, run)
-    if start_step > run.options.steps:  # an interrupted run whose checkpoint is past the length asked for
-        raise rundir.RunDirectoryError(rundir.longer_run_message(run.output, start_step, run.options.steps))
-    return _complete(simulation, run, start_step, extra_reporters)
+    try:
+        simulation = _simulation(run)
+        start_step = _restore(simulation, run) if run.resume else _start(simulation, run)
+        if start_step > run.options.steps:  # an interrupted run whose checkpoint is past the length asked for
+            raise rundir.RunDirectoryError(
+                rundir.longer_run_message(run.output, start_step, run.options.steps)
+            )
+        return _complete(simulation, run, start_step, extra_reporters)
+    finally:
+        if run.lock is not None:
+            run.lock.close()
 
 
 def _complete(
@@ -130,7 +137,11 @@ def _complete(
     options = run.options
     last = start_step if run.resume else None
     checkpoints = CheckpointReporter(
-        run.output / rundir.CHECKPOINT_FILE, options.checkpoint_interval, options.checkpoint_seconds, last
+        run.output / rundir.CHECKPOINT_FILE,
+        options.checkpoint_interval,
+        options.checkpoint_seconds,
+        last,
+        previous=run.output / rundir.PREVIOUS_CHECKPOINT_FILE,
     )
     try:
         if start_step >= options.steps:
@@ -169,11 +180,18 @@ def prepare_run(
     if problem is not None:
         warnings.warn(f"{prepared.name}: {problem}.", LargeStepWarning, stacklevel=3)
     parameters = rundir.run_parameters(prepared, spec, options)
-    stored = rundir.check_run_directory(output, parameters)
-    resume = stored is not None and (output / rundir.CHECKPOINT_FILE).is_file()
+    rundir.check_run_directory(output, parameters)  # refused before anything is written
+    output.mkdir(parents=True, exist_ok=True)
+    lock = rundir.lock_run_directory(output)  # then nothing is touched while another run holds it
+    try:
+        stored = rundir.check_run_directory(output, parameters)
+    except BaseException:
+        if lock is not None:
+            lock.close()
+        raise
+    resume = stored is not None and bool(rundir.checkpoint_files(output))
     if stored is not None and not resume:  # interrupted before its first checkpoint: start again
         rundir.remove_outputs(output)
-    output.mkdir(parents=True, exist_ok=True)
     rundir.write_parameters(output, parameters)
     if not resume:
         (output / rundir.SYSTEM_FILE).write_text(
@@ -181,7 +199,7 @@ def prepare_run(
         )
         with open(output / rundir.TOPOLOGY_FILE, "w") as handle:
             app.PDBFile.writeFile(prepared.topology, prepared.state.getPositions(), handle, keepIds=True)
-    return _Run(output, prepared, spec, options, platform, properties, resume)
+    return _Run(output, prepared, spec, options, platform, properties, resume, lock)
 
 
 def _prepare_system(
@@ -213,8 +231,36 @@ def _simulation(run: _Run) -> app.Simulation:
 
 
 def _restore(simulation: app.Simulation, run: _Run) -> int:
-    """Load the last checkpoint and cut the files back to it; return its step."""
-    simulation.loadCheckpoint(str(run.output / rundir.CHECKPOINT_FILE))
+    """Load the last readable checkpoint and cut the files back to it; return its step.
+
+    A damaged last checkpoint (a disk full, a copy cut short) is said, and the one
+    before it is used: at most one checkpoint interval is lost.
+
+    Raises
+    ------
+    RunDirectoryError
+        If no checkpoint can be read: the message names the files and the way out.
+    """
+    errors = []
+    for path in rundir.checkpoint_files(run.output):
+        try:
+            simulation.loadCheckpoint(str(path))
+        except mm.OpenMMException as error:
+            errors.append(f"{path}: {str(error).strip()}")
+            continue
+        if errors:
+            warnings.warn(
+                f"{'; '.join(errors)}: unreadable; resumed from {path} "
+                f"(step {simulation.currentStep}) instead.",
+                RuntimeWarning,
+                stacklevel=3,
+            )
+        break
+    else:
+        raise rundir.RunDirectoryError(
+            f"no checkpoint of the run in {run.output} can be read ({'; '.join(errors)}). To start the run "
+            f"again from step 0, remove {run.output} (or give another output directory)."
+        )
     start_step = simulation.currentStep
     rundir.cut_back(run.output, start_step, run.options.intervals)
     return start_step

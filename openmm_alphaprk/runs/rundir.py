@@ -44,6 +44,10 @@ TRAJECTORY_FILE = "trajectory.dcd"
 VELOCITIES_FILE = "velocities.dcd"
 START_STATE_FILE = "start_state.xml"
 CHECKPOINT_FILE = "checkpoint.chk"
+#: The checkpoint before the last one, kept so that a damaged last one loses one interval.
+PREVIOUS_CHECKPOINT_FILE = "checkpoint.previous.chk"
+#: Held (``flock``) by the process running in the directory; holds its pid.
+LOCK_FILE = ".lock"
 SUMMARY_FILE = "summary.json"
 SYSTEM_FILE = "system.xml"
 TOPOLOGY_FILE = "topology.pdb"
@@ -108,7 +112,7 @@ def check_run_directory(path: Path, parameters: dict[str, Any]) -> dict[str, Any
     """
     if path.exists() and not path.is_dir():
         raise RunDirectoryError(f"output {path} is a file; give a directory.")
-    if not path.exists() or not any(path.iterdir()):
+    if not path.exists() or not any(entry.name != LOCK_FILE for entry in path.iterdir()):
         return None
     stored_file = path / PARAMETERS_FILE
     if not stored_file.is_file():
@@ -135,6 +139,47 @@ def check_run_directory(path: Path, parameters: dict[str, Any]) -> dict[str, Any
         if done > parameters["steps"]:
             raise RunDirectoryError(longer_run_message(path, done, parameters["steps"]))
     return stored
+
+
+def checkpoint_files(path: Path) -> list[Path]:
+    """Return the run's checkpoints that exist, the last first, then the one before it."""
+    return [path / name for name in (CHECKPOINT_FILE, PREVIOUS_CHECKPOINT_FILE) if (path / name).is_file()]
+
+
+def lock_run_directory(path: Path):
+    """Hold ``path/.lock`` exclusively while the returned file is open; refuse a directory another run holds.
+
+    The lock is the operating system's (``flock``): it ends with the process, so a killed
+    run leaves none behind. Where there is no ``fcntl`` (Windows) nothing is locked and
+    None is returned.
+
+    Raises
+    ------
+    RunDirectoryError
+        If another process holds the directory (the message gives its pid).
+    """
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - not POSIX
+        return None
+    handle = open(path / LOCK_FILE, "a+", encoding="utf-8")  # noqa: SIM115 - held for the run's length
+    try:
+        fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        handle.seek(0)
+        holder = handle.read().strip()
+        handle.close()
+        raise RunDirectoryError(
+            f"run directory {path} is in use by another run"
+            + (f" (process {holder})" if holder else "")
+            + ": wait until it ends (the same command then resumes or extends it), or give another output "
+            "directory."
+        ) from None
+    handle.seek(0)
+    handle.truncate()
+    handle.write(f"{os.getpid()}\n")
+    handle.flush()
+    return handle
 
 
 def longer_run_message(path: Path, done: int, requested: int) -> str:
