@@ -164,7 +164,7 @@ def test_run_then_analyze(tmp_path, cache, quick_definition):
     assert json.loads((tmp_path / "out" / "summary.json").read_text(encoding="utf-8")) == summary
     analysis = alphaprk("analyze", "out", "--rdf-max", "0.8nm", cwd=tmp_path, env_cache=cache)
     assert "O-O RDF: first peak" in analysis.stdout and "drift" in analysis.stdout
-    # issue 15: rounded fit window, labelled progress bars, why the DCD's constraint error is larger
+    # rounded fit window, labelled progress bars, why the DCD's constraint error is larger
     assert re.search(r"fit over lags \d+(\.\d{1,3})?-\d+(\.\d{1,3})? ps\)", analysis.stdout), analysis.stdout
     # D with its standard error and the frames it is from; the drift with its standard error
     analysed = json.loads((tmp_path / "out" / "analysis.json").read_text(encoding="utf-8"))
@@ -232,7 +232,7 @@ def test_compare_prints_the_table(tmp_path, cache, quick_definition):
 
 
 def test_run_prints_a_table_and_where_the_files_are(tmp_path, cache, quick_definition):
-    """Issue 15: `alphaprk run` prints compare's table (with the energy mode's alpha* line), not raw JSON."""
+    """`alphaprk run` prints compare's table (with the energy mode's alpha* line), not raw JSON."""
     result = alphaprk(
         "run",
         quick_definition,
@@ -258,7 +258,7 @@ def test_run_prints_a_table_and_where_the_files_are(tmp_path, cache, quick_defin
 
 
 def test_integrator_help_lists_every_name(tmp_path, cache):
-    """Issue 15: the integrator argument's help (run) and -i's (compare) name all six forms."""
+    """the integrator argument's help (run) and -i's (compare) name all six forms."""
     from openmm_alphaprk.runs.integrator_names import VOCABULARY
 
     run_help = alphaprk("run", "--help", cwd=tmp_path, env_cache=cache).stdout
@@ -277,7 +277,7 @@ def test_integrator_help_lists_every_name(tmp_path, cache):
     "args", [["run", "tip4pew-3nm", "energy"], ["run", "tip4pew-3nm", "rattle"], ["compare", "tip4pew-3nm"]]
 )
 def test_virtual_site_refusal_names_commands_that_work(tmp_path, cache, args):
-    """Issue 15: the advice is runnable: integrators are positional (run) or -i (compare), no --integrator."""
+    """the advice is runnable: integrators are positional (run) or -i (compare), no --integrator."""
     from openmm_alphaprk.cli import build_parser
 
     result = alphaprk(*args, cwd=tmp_path, env_cache=cache, check=False)
@@ -295,7 +295,7 @@ def test_virtual_site_refusal_names_commands_that_work(tmp_path, cache, args):
 
 
 def test_compare_refuses_a_folder_of_longer_runs(tmp_path, cache):
-    """Issue 15: --steps 20 over 40-step runs is refused in one line (was: "... is not a DCD file")."""
+    """--steps 20 over 40-step runs is refused in one line that says so (not a DCD reader's error)."""
     common = ["compare", "water-cluster", "-i", "rattle", "-o", "cmp", "--no-plot", "--quiet"]
     alphaprk(*common, "--steps", "40", cwd=tmp_path, env_cache=cache)
     shorter = alphaprk(*common, "--steps", "20", cwd=tmp_path, env_cache=cache, check=False)

@@ -205,7 +205,7 @@ def test_blow_up_stops_with_a_clear_error_and_keeps_the_output(box, tmp_path):
 
 
 def test_blow_up_says_where_it_stopped_and_whether_a_checkpoint_exists(box, tmp_path):
-    """Issue 15: no "near step", no checkpoint claimed that was never written."""
+    """no "near step", no checkpoint claimed that was never written."""
     import re
 
     import openmm as mm
@@ -235,7 +235,7 @@ def test_blow_up_says_where_it_stopped_and_whether_a_checkpoint_exists(box, tmp_
 
 
 def test_longer_run_is_refused_not_reported_as_shorter(cluster, tmp_path):
-    """Issue 15: a folder holding a longer run is refused (run_nve and compare), never cut or mislabelled."""
+    """a folder holding a longer run is refused (run_nve and compare), never cut or mislabelled."""
     run_nve(cluster, "rattle", tmp_path / "run", steps=20, **REFERENCE_RUN)
     summary = (tmp_path / "run" / rundir.SUMMARY_FILE).read_text(encoding="utf-8")
     with pytest.raises(RunDirectoryError, match="holds a run of 20 steps, longer than the 10 asked for"):
@@ -265,7 +265,7 @@ def test_run_without_a_trajectory_frame_yet_is_extended(cluster, tmp_path):
 
 
 def test_reading_a_run_directory_raises_no_deprecation_warning(cluster, tmp_path):
-    """Issue 15: the package's DCD reading (open_universe, analyze_run), DeprecationWarnings as errors."""
+    """the package's DCD reading (open_universe, analyze_run), DeprecationWarnings as errors."""
     import warnings
 
     from openmm_alphaprk.workflows import analyze_run

@@ -138,7 +138,7 @@ def test_energy_mode_on_a_water_box_beats_rattle_and_keeps_constraints(water_box
     tolerance = integrator.energy_tolerance.value_in_unit(unit.kilojoules_per_mole)
     assert np.max(np.abs(measured - claimed)) < 1e-7
     assert np.all(np.abs(measured[~fell_back]) <= tolerance)
-    # measured on this (smooth) box over 60 steps: RMS 0.18 vs RATTLE's 0.92, 6.2 force
+    # measured on this (smooth) box over 60 steps: RMS 0.18 vs RATTLE's 0.92, 6.23 force
     # evaluations per step; one α often cannot reach E_ref (68% of steps fall back)
     assert np.sqrt(np.mean(measured**2)) < 0.3 * rattle_rms
     pos_err, vel_err = constraint_errors(water_box.system, positions_of(ctx), velocities_of(ctx))
@@ -146,7 +146,7 @@ def test_energy_mode_on_a_water_box_beats_rattle_and_keeps_constraints(water_box
     assert vel_err < 1e-6
     lo, hi = integrator.alpha_bounds
     assert lo <= integrator.alpha <= hi
-    assert integrator.force_evaluations_per_step < 2 * integrator.max_midpoint_iterations
+    assert integrator.force_evaluations_per_step <= 6.5, integrator.force_evaluations_per_step
 
 
 def test_controller_recovers_from_a_bad_starting_alpha():
@@ -162,11 +162,12 @@ def test_controller_recovers_from_a_bad_starting_alpha():
     normal_residuals = _residuals(ctx, normal, 40, e_ref)[0]
 
     bad = AlphaRattleIntegrator(0.002, **settings)
-    bad.alpha = 50.0  # far outside the bounds: clipped to 3, then the controller must find its way back
+    bad.alpha = 50.0  # far outside the bounds: clipped to them, then the controller must find its way back
     _, ctx = _cluster_context(bad)
     bad_residuals = _residuals(ctx, bad, 40, e_ref)[0]
     assert abs(bad_residuals[0]) > 0.0
-    assert -1.0 <= bad.alpha <= 3.0
+    assert bad.alpha_bounds == pytest.approx((-0.5, 1.5))  # order 2's defaults
+    assert -0.5 <= bad.alpha <= 1.5
     # after a few steps the bad start is forgotten: same quality as a normal start
     assert np.sqrt(np.mean(bad_residuals[10:] ** 2)) < 2 * np.sqrt(np.mean(normal_residuals[10:] ** 2)) + 0.01
 

@@ -233,7 +233,7 @@ def test_cli_runs_a_sweep_through_the_installed_script(tmp_path, cache):
     )
     assert done.returncode == 0, done.stderr
     assert "2 run now, 0 finished before, 0 failed" in done.stdout
-    # issue 15: the cell count once (was twice: the start line and the result line)
+    # the cell count once, not in both the start line and the result line
     again = subprocess.run(
         [script, "sweep", config], capture_output=True, text=True, encoding="utf-8", env=env
     )
