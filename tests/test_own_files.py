@@ -311,6 +311,7 @@ def test_tip4pew_files_get_the_virtual_site_refusal_for_the_energy_mode_with_exi
         cwd=tmp_path,
         capture_output=True,
         text=True,
+        encoding="utf-8",
         timeout=300,
         env={**__import__("os").environ, "ALPHAPRK_CACHE_DIR": str(tmp_path / "cache")},
     )

@@ -47,14 +47,16 @@ def test_two_processes_on_one_output_directory(tmp_path):
     env = {**os.environ, "ALPHAPRK_CACHE_DIR": str(tmp_path / "cache")}
     args = [str(script), "run", "water-cluster", "rattle", "--platform", "Reference", "--steps", "100000",
             "-o", "out", "--quiet", "--energy-interval", "10"]  # fmt: skip
-    first = subprocess.Popen(args, cwd=tmp_path, env=env, stderr=subprocess.PIPE, text=True)
+    first = subprocess.Popen(args, cwd=tmp_path, env=env, stderr=subprocess.PIPE, text=True, encoding="utf-8")
     try:
         energies = tmp_path / "out" / rundir.ENERGIES_FILE
         deadline = time.monotonic() + 120
         while not (energies.is_file() and len(energies.read_text().splitlines()) > 3):
             assert time.monotonic() < deadline and first.poll() is None, "the first run did not start"
             time.sleep(0.1)
-        second = subprocess.run(args, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=120)
+        second = subprocess.run(
+            args, cwd=tmp_path, env=env, capture_output=True, text=True, encoding="utf-8", timeout=120
+        )
         assert second.returncode == 2, second.stderr
         assert f"in use by another run (process {first.pid})" in second.stderr
         assert "Traceback" not in second.stderr
