@@ -120,8 +120,13 @@ def system_key(definition: SystemDefinition) -> str:
 
 def cache_path(definition: SystemDefinition, cache_dir: str | os.PathLike | None = None) -> Path:
     """Folder of the cached equilibrated state of ``definition``."""
+    return _entry(definition, cache_dir, system_key(definition))
+
+
+def _entry(definition: SystemDefinition, cache_dir: str | os.PathLike | None, key: str) -> Path:
+    """Folder of the cache entry of ``definition`` under ``key`` (:func:`system_key`, computed once)."""
     root = Path(cache_dir) if cache_dir is not None else default_cache_dir()
-    return root / f"{definition.name}-{system_key(definition)[:16]}"
+    return root / f"{definition.name}-{key[:16]}"
 
 
 def prepare_system(
@@ -171,26 +176,18 @@ def prepare_system(
     """
     definition = name if isinstance(name, SystemDefinition) else load_definition(name)
     definition = definition.with_overrides(overrides)
-    prepared = None if rebuild else _shipped_or_cached(definition, cache_dir, use_cache)
-    if prepared is not None:
-        if check is not None:
-            check(prepared.system)
-        return prepared
-    path = cache_path(definition, cache_dir) if use_cache else None
-    return _build(definition, system_key(definition), path, progress, check, replace=rebuild)
-
-
-def _shipped_or_cached(
-    definition: SystemDefinition, cache_dir: str | os.PathLike | None, use_cache: bool
-) -> PreparedSystem | None:
-    """Return the shipped state of ``definition``, else its cache entry (if ``use_cache``), else None."""
-    shipped = load_shipped_state(definition)
+    shipped = None if rebuild else load_shipped_state(definition)
     if shipped is not None:
-        return PreparedSystem.from_shipped(definition, shipped)
-    path = cache_path(definition, cache_dir)
-    if use_cache and (path / "state.xml").is_file():
-        return _read(path, definition, system_key(definition))
-    return None
+        prepared = PreparedSystem.from_shipped(definition, shipped)
+    else:
+        key = system_key(definition)  # once: for a user's files it hashes every file read
+        path = _entry(definition, cache_dir, key) if use_cache else None
+        if path is None or rebuild or not (path / "state.xml").is_file():
+            return _build(definition, key, path, progress, check, replace=rebuild)
+        prepared = _read(path, definition, key)
+    if check is not None:
+        check(prepared.system)
+    return prepared
 
 
 def _build(
