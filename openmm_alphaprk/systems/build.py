@@ -93,13 +93,14 @@ def equilibrate(
     integrator.setRandomNumberSeed(int(eq["seed"]))
     integrator.setConstraintTolerance(1e-10)
     context = mm.Context(system, integrator, mm.Platform.getPlatformByName(eq["platform"]))
+    as_read = eq["minimize_max_iterations"] == 0 and eq["langevin_steps"] == 0  # a user's start, unchanged
     context.setPeriodicBoxVectors(*system.getDefaultPeriodicBoxVectors())
     context.setPositions(positions)
     if eq["minimize_max_iterations"] > 0:
         mm.LocalEnergyMinimizer.minimize(
             context, float(eq["minimize_tolerance_kJ_per_mol_nm"]), int(eq["minimize_max_iterations"])
         )
-    if velocities is not None and eq["minimize_max_iterations"] == 0 and eq["langevin_steps"] == 0:
+    if velocities is not None and as_read:
         context.setVelocities(velocities)
     else:
         context.setVelocitiesToTemperature(kelvin, int(eq["seed"]))
@@ -119,7 +120,7 @@ def equilibrate(
     context.setStepCount(0)
     state = context.getState(getPositions=True, getVelocities=True, getEnergy=True, getParameters=True)
     energy = (state.getPotentialEnergy() + state.getKineticEnergy()).value_in_unit(unit.kilojoules_per_mole)
-    if not np.isfinite(energy) and eq["minimize_max_iterations"] == 0 and eq["langevin_steps"] == 0:
+    if not np.isfinite(energy) and as_read:
         raise DefinitionError(
             f"the start of {definition.name!r} as read has a non-finite energy ({energy}): atoms on top of "
             "each other, or coordinates that do not belong to this topology; check the coordinates."
