@@ -59,12 +59,9 @@ class CheckpointReporter:
     """
 
     def __init__(
-        self, path: Path, interval: int, seconds: float, last_step: int | None, previous: Path | None = None
+        self, path: Path, previous: Path, interval: int, seconds: float, last_step: int | None
     ) -> None:
-        self.path, self._interval, self._seconds = path, interval, seconds
-        self.previous = (
-            previous if previous is not None else path.with_name(path.stem + ".previous" + path.suffix)
-        )
+        self.path, self.previous, self._interval, self._seconds = path, previous, interval, seconds
         self.last_step = last_step
         self._written = time.monotonic()
 

@@ -138,10 +138,10 @@ def _complete(
     last = start_step if run.resume else None
     checkpoints = CheckpointReporter(
         run.output / rundir.CHECKPOINT_FILE,
+        run.output / rundir.PREVIOUS_CHECKPOINT_FILE,
         options.checkpoint_interval,
         options.checkpoint_seconds,
         last,
-        previous=run.output / rundir.PREVIOUS_CHECKPOINT_FILE,
     )
     try:
         if start_step >= options.steps:
