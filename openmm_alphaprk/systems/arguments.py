@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 
 from .._units import parse_time
-from .definitions import SystemDefinition
+from .definitions import SystemDefinition, list_systems
 from .files import CONSTRAINT_CHOICES, FileOptions, file_definition, is_system_file
 
 
@@ -56,7 +56,7 @@ def add_file_arguments(parser: argparse.ArgumentParser) -> None:
     option(
         "--constraints",
         choices=sorted(CONSTRAINT_CHOICES),
-        default="HBonds",
+        default=FileOptions.constraints,
         help="constraints where a reader creates the System (default HBonds, with rigid water)",
     )
     option(
@@ -73,17 +73,24 @@ def add_file_arguments(parser: argparse.ArgumentParser) -> None:
     option(
         "--temperature",
         type=float,
-        default=300.0,
-        help="K: velocities drawn where the files have none (default 300)",
+        default=FileOptions.temperature_K,
+        help=f"K: velocities drawn where the files have none (default {FileOptions.temperature_K:g})",
     )
-    option("--seed", type=int, default=2024, help="seed of the drawn velocities and equilibration")
+    option(
+        "--seed", type=int, default=FileOptions.seed, help="seed of the drawn velocities and equilibration"
+    )
     option(
         "--equilibrate",
         default=None,
         metavar="TIME",
         help="a seeded Langevin equilibration first, with a unit: 10ps (cached)",
     )
-    option("--cutoff", type=float, default=0.9, help="PME cutoff in nm (default 0.9)")
+    option(
+        "--cutoff",
+        type=float,
+        default=FileOptions.cutoff_nm,
+        help=f"PME cutoff in nm (default {FileOptions.cutoff_nm:g})",
+    )
 
 
 def file_options(args: argparse.Namespace) -> FileOptions:
@@ -111,8 +118,6 @@ def file_options(args: argparse.Namespace) -> FileOptions:
 
 def unknown_systems(names: list[str]) -> list[str]:
     """Return the names that are neither a known system, a ``.toml`` definition nor a system file."""
-    from .definitions import list_systems
-
     known = set(list_systems())
     return [n for n in names if n not in known and not n.endswith(".toml") and not is_system_file(n)]
 
