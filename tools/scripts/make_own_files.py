@@ -186,6 +186,18 @@ def energy(system, positions, box=None):
     return e
 
 
+def relaxed(modeller, system, minimize_iterations: int, steps: int) -> app.Simulation:
+    """Minimize, then run seeded Langevin at 300 K (2 fs); return the Simulation."""
+    integrator = openmm.LangevinMiddleIntegrator(300 * kelvin, 1.0 / picosecond, 2 * femtosecond)
+    integrator.setRandomNumberSeed(SEED)
+    simulation = app.Simulation(modeller.topology, system, integrator, platform())
+    simulation.context.setPositions(modeller.positions)
+    simulation.minimizeEnergy(maxIterations=minimize_iterations)
+    simulation.context.setVelocitiesToTemperature(300 * kelvin, SEED)
+    simulation.step(steps)
+    return simulation
+
+
 def main():
     # some hosts have a broken OpenCL driver; addHydrogens/addSolvent use the default platform
     os.environ.setdefault("OPENMM_DEFAULT_PLATFORM", "CPU")
@@ -207,13 +219,7 @@ def main():
         constraints=app.HBonds,
         rigidWater=True,
     )
-    integ = openmm.LangevinMiddleIntegrator(300 * kelvin, 1.0 / picosecond, 2 * femtosecond)
-    integ.setRandomNumberSeed(SEED)
-    sim = app.Simulation(mod.topology, sys_md, integ, platform())
-    sim.context.setPositions(mod.positions)
-    sim.minimizeEnergy(maxIterations=2000)
-    sim.context.setVelocitiesToTemperature(300 * kelvin, SEED)
-    sim.step(2000)  # 4 ps
+    sim = relaxed(mod, sys_md, minimize_iterations=2000, steps=2000)  # 4 ps
     st = sim.context.getState(getPositions=True, getVelocities=True, getEnergy=True, enforcePeriodicBox=True)
     positions = st.getPositions(asNumpy=True)
     velocities = st.getVelocities(asNumpy=True)
@@ -329,13 +335,7 @@ def main():
     s4 = ff4.createSystem(
         m4.topology, nonbondedMethod=app.PME, nonbondedCutoff=0.9 * nanometer, removeCMMotion=False
     )
-    i4 = openmm.LangevinMiddleIntegrator(300 * kelvin, 1.0 / picosecond, 2 * femtosecond)
-    i4.setRandomNumberSeed(SEED)
-    sim4 = app.Simulation(m4.topology, s4, i4, platform())
-    sim4.context.setPositions(m4.positions)
-    sim4.minimizeEnergy(maxIterations=1000)
-    sim4.context.setVelocitiesToTemperature(300 * kelvin, SEED)
-    sim4.step(500)  # 1 ps
+    sim4 = relaxed(m4, s4, minimize_iterations=1000, steps=500)  # 1 ps
     st4 = sim4.context.getState(
         getPositions=True, getVelocities=True, getEnergy=True, enforcePeriodicBox=True
     )
