@@ -46,7 +46,7 @@ def test_residual_beyond_alpha_authority_is_reduced_not_grown(water_box):
     """Order 4 with E_ref moved 10 kJ/mol away: α's small authority walks the residual back.
 
     A property of the controller, not the villin limit cycle itself (which this
-    constructed case does not reproduce; see docs/energy_mode.md).
+    constructed case does not reproduce; see docs/research/controller_robustness.md).
     """
     integrator = _energy_mode(4)
     context = make_context(water_box.system, integrator, water_box.positions, water_box.velocities, CPU)
@@ -112,7 +112,8 @@ def test_energy_modes_never_worse_than_rattle_on_a_water_box(
     strict=True,
     reason="the goal of one trial on most steps is not met: measured 5.2 force evaluations "
     "per step here with short trials (5.8 without; 200 steps, Reference, tolerance 0.01 kJ/mol); "
-    "docs/energy_mode.md, 'One trial per step: what the measurements allow' and 'Short trials'",
+    "docs/research/one_trial_per_step.md, 'One trial per step: what the measurements allow', and "
+    "docs/research/short_trials.md",
 )
 def test_order4_energy_mode_takes_at_most_4_5_force_evaluations_per_step_on_a_water_box(
     order4_energy_mode_on_the_water_box,
