@@ -638,7 +638,7 @@ class AlphaRattleEnergyIntegrator(_ReferenceEnergy, AlphaRattleIntegrator):
 
         During the predictor's warm-up every trial is full and a step starts at the last
         step's α*, so a step that carried α far passes it on to the next; a fourth trial
-        let it reach a bound (docs/energy_mode.md, "Short trials").
+        let it reach a bound (docs/research/short_trials.md).
         """
         if self.order != 2:
             return "select(use_prediction, max_trials, min(max_trials, 3))"

@@ -54,7 +54,7 @@ class ControllerDefaults:
 
     Order 2: α* is O(1); a wide interval such as (−1, 3) lets the greedy controller
     take large excursions that spoil later steps (the interval comparison is in
-    docs/energy_mode.md, "Defaults, and why"). Order 4 (any composition; the values are
+    docs/research/energy_mode_first_build.md, "Defaults, and why"). Order 4 (any composition; the values are
     the triple jump's, with α on its middle sub-step, and scale by :func:`alpha_scale_of`
     for another α stage): α* is O(h²), a few 1e-2 for water at 2 fs on the triple
     jump; a large excursion of α turns the step into a poor second-order one, so the

@@ -1,7 +1,7 @@
 """Record an energy mode per step (alpha*, slope, trials, residual, S-bar, fallback, H - E_ref), or RATTLE.
 
 Usage: python tools/scripts/controller_record.py SYSTEM ORDER(0=RATTLE) STEPS PLATFORM PRECISION OUT.npy
-(the numbers of docs/energy_mode.md "Controller robustness"; ALPHAPRK_CACHE: a systems cache folder)
+(the numbers of docs/research/controller_robustness.md; ALPHAPRK_CACHE: a systems cache folder)
 """
 
 import os

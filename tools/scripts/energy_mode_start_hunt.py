@@ -7,7 +7,7 @@ For each seed: a 1.7 nm TIP3P box (PME 0.8 nm, LJ switched from 0.7 nm, Ewald 1e
 OUT_DIR, then 600 steps of α-RATTLE-4's energy mode on PLATFORM with the energy read every
 10 steps. A run above 0.02 kJ/mol RMS is repeated from the saved start on the same
 platform, on the CPU and on the platform in double precision (race or start?).
-docs/energy_mode.md, "The intermittent OpenCL (pocl) failure", has the numbers.
+docs/research/one_trial_per_step.md, "The intermittent OpenCL (pocl) failure", has the numbers.
 """
 
 import sys

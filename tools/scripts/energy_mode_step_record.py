@@ -3,7 +3,7 @@
 Usage: python tools/scripts/energy_mode_step_record.py SYSTEM STEPS OUT.npy [MIDPOINT_TOLERANCE_NM]
 
 Writes an array with one row per step and the columns of ``NAMES`` (saved every 100
-steps, so an interrupted run leaves what it did). The numbers of docs/energy_mode.md
+steps, so an interrupted run leaves what it did). The numbers of docs/research/one_trial_per_step.md,
 "Villin's excursions, step by step".
 """
 

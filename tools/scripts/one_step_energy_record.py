@@ -7,7 +7,7 @@ from its cached start, CPU platform, 2 fs: before every step the state is copied
 second context whose α-RATTLE-4 has the fixed α = DELTA (default 0.02, converged
 midpoint); both take one step. Saved per step: H before the step, D0 = H(α = 0 step) −
 H before, and S = (H(α = DELTA step) − H(α = 0 step)) / DELTA. These are the numbers of
-docs/energy_mode.md, "One trial per step". tools/scripts/controller_offline.py replays
+docs/research/one_trial_per_step.md, "One trial per step". tools/scripts/controller_offline.py replays
 controllers on them.
 """
 

@@ -6,7 +6,7 @@ Runs RATTLE, then the order-2 energy mode with each ``max_trials`` given (defaul
 every run from the system's shipped start for STEPS steps of 2 fs, H − E_ref read after
 every step; writes RMS, max, the drift (kJ/mol per step, line fit), force evaluations
 per step and the controller totals to OUT.json after each run. The numbers of
-docs/energy_mode.md "Order 2 at a budget of 4 evaluations" (there with 1 2 3; one trial
+docs/research/one_trial_per_step.md "Order 2 at a budget of 4 evaluations" (there with 1 2 3; one trial
 is now refused).
 """
 

@@ -1,6 +1,6 @@
 """What a RATTLE step followed by velocity rescaling costs on a GPU, by the sums it needs.
 
-Research script behind docs/rescaling.md ("Cost on a GPU"): plain ``CustomIntegrator``
+Research script behind docs/platforms.md ("RATTLE + rescaling on a GPU"): plain ``CustomIntegrator``
 programs, not the package's, timed against RATTLE and ``VerletIntegrator`` on the same
 water box in interleaved rounds. Each variant adds to RATTLE what a rescaling step
 could need; every sum over degrees of freedom and every read of ``energy`` is a

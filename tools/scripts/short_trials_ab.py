@@ -1,7 +1,7 @@
 """Run α-RATTLE-4's energy mode with short trials on or off, from a shipped start, and print its totals.
 
 Usage: python tools/scripts/short_trials_ab.py SYSTEM STEPS SHORT(1/0) [MAX_TRIALS] [PLATFORM] [TOLERANCE]
-(the numbers of docs/energy_mode.md "Short trials"; MAX_TRIALS: default the order-4 default,
+(the numbers of docs/research/short_trials.md; MAX_TRIALS: default the order-4 default,
 "-" for it; PLATFORM: default CPU; TOLERANCE: energy tolerance in kJ/mol, default automatic).
 SHORT=0 makes every trial full (the global ``short_trials``).
 """
