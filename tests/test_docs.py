@@ -12,7 +12,12 @@ from openmm_alphaprk.runs.integrator_names import parse_integrator
 from openmm_alphaprk.workflows.comparison import DEFAULT_INTEGRATORS
 
 ROOT = Path(__file__).resolve().parents[1]
-PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+#: The README and every Markdown page of the documentation (docs/ and its folders; not the built site).
+PAGES = [
+    ROOT / "README.md",
+    *sorted(page for page in (ROOT / "docs").rglob("*.md") if "_build" not in page.relative_to(ROOT).parts),
+]
+README_MAX_LINES = 150
 LINK = re.compile(r"\]\(([^)#\s]+)(?:#[^)]*)?\)")
 
 
@@ -26,6 +31,26 @@ def test_every_relative_link_resolves_inside_the_project():
             path = (page.parent / target).resolve()
             assert path.is_relative_to(ROOT), f"{page.name}: {target} leaves the project"
             assert path.exists(), f"{page.name}: {target} does not exist"
+
+
+def test_the_pages_include_the_documentation_folders():
+    """The research record and the API reference live in subfolders of docs/; their links are checked too."""
+    folders = {page.parent.name for page in PAGES}
+    assert {"research", "api"} <= folders
+
+
+def test_the_readme_is_a_front_page():
+    lines = (ROOT / "README.md").read_text(encoding="utf-8").splitlines()
+    assert len(lines) <= README_MAX_LINES, f"README.md has {len(lines)} lines; move detail into docs/"
+
+
+def test_no_page_refers_to_tracker_issues():
+    """Pages give dates, not tracker numbers, which a reader of the documentation cannot look up."""
+    tracker = re.compile(r"\b[Ii]ssues? #?\d+|(?<![\w&])#\d+\b")
+    for page in PAGES:
+        text = page.read_text(encoding="utf-8")
+        found = tracker.findall(text)
+        assert not found, f"{page.relative_to(ROOT)} names tracker issues: {found}"
 
 
 def test_the_default_comparison_uses_the_recommended_energy_mode():
