@@ -11,7 +11,7 @@ import numpy as np
 import openmm as mm
 import openmm.unit as unit
 import pytest
-from quick_systems import TEST_STATES, WATER_BOX, stored_water_box
+from quick_systems import TEST_STATES, TIP4PEW_BOX, WATER_BOX, stored_water_box
 
 from openmm_alphaprk import observables
 from openmm_alphaprk.systems import CACHE_ENV, prepare_system
@@ -34,21 +34,35 @@ def temporary_systems_cache(tmp_path_factory):
         os.environ[CACHE_ENV] = previous
 
 
+def _stored_or_built(definition, what: str):
+    stored = stored_water_box(definition)
+    if stored is not None:
+        return stored
+    warnings.warn(
+        f"no stored start state of {what} in {TEST_STATES} matches its definition: building it "
+        "(a minute). `python tests/quick_systems.py` stores it again.",
+        stacklevel=3,
+    )
+    return prepare_system(definition, use_cache=False)
+
+
 @pytest.fixture(scope="session")
 def water_box():
     """~550-atom TIP3P box (1.8 nm, PME, 0.8 nm cutoff) from its stored start state (quick_systems.WATER_BOX).
 
     If no stored state matches the definition, it is built (a minute) with a warning.
     """
-    stored = stored_water_box()
-    if stored is not None:
-        return stored
-    warnings.warn(
-        f"no stored start state of the test water box in {TEST_STATES} matches its definition: building "
-        "it (a minute). `python tests/quick_systems.py` stores it again.",
-        stacklevel=2,
-    )
-    return prepare_system(WATER_BOX, use_cache=False)
+    return _stored_or_built(WATER_BOX, "the test water box")
+
+
+@pytest.fixture(scope="session")
+def tip4pew_box():
+    """A 1.8 nm TIP4P-Ew box (quick_systems.TIP4PEW_BOX) from its stored start state: system, x, v.
+
+    If no stored state matches the definition, it is built with a warning.
+    """
+    box = _stored_or_built(TIP4PEW_BOX, "the test TIP4P-Ew box")
+    return box.system, box.positions, box.velocities
 
 
 def make_context(system, integrator, positions, velocities, platform=REFERENCE):

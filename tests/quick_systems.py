@@ -1,8 +1,8 @@
 """Helpers for tests: the stored test water box, systems built with a shortened equilibration.
 
-``python tests/quick_systems.py`` builds the test water box (a minute on Reference) and
-stores its start state in ``tests/data/states`` again, after its definition or the
-builder changed.
+``python tests/quick_systems.py`` builds the test water boxes (TIP3P: a minute on Reference;
+TIP4P-Ew) and stores their start states in ``tests/data/states`` again, after their
+definitions or the builder changed.
 """
 
 from __future__ import annotations
@@ -21,14 +21,19 @@ from openmm_alphaprk.systems.shipped import load_shipped_state
 #: Reference, which makes it the same on every run (the multithreaded CPU platform's force
 #: sums are not bitwise reproducible).
 WATER_BOX = water_box_definition(1.8, cutoff=0.8, equilibration_steps=300, seed=7, platform="Reference")
-#: Where its start state is stored (the shipped-state format: ``NAME.xml.gz`` and ``NAME.json``).
+#: A 1.8 nm TIP4P-Ew box (M-sites are massless virtual sites), equilibrated on CPU; stored,
+#: so that every run starts from the same state.
+TIP4PEW_BOX = water_box_definition(
+    1.8, model="tip4pew", cutoff=0.8, equilibration_steps=200, seed=3, platform="CPU"
+)
+#: Where their start states are stored (the shipped-state format: ``NAME.xml.gz`` and ``NAME.json``).
 TEST_STATES = Path(__file__).parent / "data" / "states"
 
 
-def stored_water_box() -> PreparedSystem | None:
-    """The test water box from its stored start state (System made here), or None if none matches."""
-    shipped = load_shipped_state(WATER_BOX, TEST_STATES)
-    return None if shipped is None else PreparedSystem.from_shipped(WATER_BOX, shipped)
+def stored_water_box(definition=WATER_BOX) -> PreparedSystem | None:
+    """A test water box from its stored start state (System made here), or None if none matches."""
+    shipped = load_shipped_state(definition, TEST_STATES)
+    return None if shipped is None else PreparedSystem.from_shipped(definition, shipped)
 
 
 #: Minimization and equilibration cut short: the build path is the real one, only shorter.
@@ -69,4 +74,5 @@ class StopAt:
 
 
 if __name__ == "__main__":
-    print(write_shipped_state(prepare_system(WATER_BOX, use_cache=False), TEST_STATES))
+    for definition in (WATER_BOX, TIP4PEW_BOX):
+        print(write_shipped_state(prepare_system(definition, use_cache=False), TEST_STATES))

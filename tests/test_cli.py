@@ -1,7 +1,10 @@
-"""The ``alphaprk`` console script, run as a subprocess as a user would."""
+"""The ``alphaprk`` command line: in this process (``cli.main``), and through the installed script
+where the process is the point (the script itself, exit statuses, signals, a killed run)."""
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 import os
 import re
@@ -9,6 +12,7 @@ import signal
 import subprocess
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import pytest
@@ -19,20 +23,58 @@ from openmm_alphaprk.systems.definitions import DEFINITIONS_DIR, load_definition
 SCRIPT = Path(sys.executable).with_name("alphaprk")
 
 
-def alphaprk(*args, cwd, env_cache, check=True):
-    env = {**os.environ, "ALPHAPRK_CACHE_DIR": str(env_cache)}
-    result = subprocess.run(
-        [str(SCRIPT), *map(str, args)],
-        cwd=cwd,
-        env=env,
-        capture_output=True,
-        text=True,
-        encoding="utf-8",
-        timeout=300,
-    )
+def alphaprk(*args, cwd, env_cache, check=True, process=False):
+    """Run ``alphaprk ARGS`` in ``cwd`` with ``env_cache`` as the systems cache: its exit status and output.
+
+    In this process (``cli.main``) unless ``process``: through the installed script, where
+    the process itself is what a test checks.
+    """
+    if process:
+        env = {**os.environ, "ALPHAPRK_CACHE_DIR": str(env_cache)}
+        result = subprocess.run(
+            [str(SCRIPT), *map(str, args)],
+            cwd=cwd,
+            env=env,
+            capture_output=True,
+            text=True,
+            encoding="utf-8",
+            timeout=300,
+        )
+    else:
+        result = _in_process(list(map(str, args)), cwd, env_cache)
     if check and result.returncode != 0:
         raise AssertionError(f"alphaprk {args} failed ({result.returncode}):\n{result.stderr}")
     return result
+
+
+def _in_process(args: list[str], cwd, env_cache) -> subprocess.CompletedProcess:
+    """``cli.main(args)`` as the script runs it: in ``cwd``, with the cache variable set, output captured."""
+    from openmm_alphaprk.cli import main
+
+    stdout, stderr = io.StringIO(), io.StringIO()
+    previous_cwd, previous_cache = Path.cwd(), os.environ.get("ALPHAPRK_CACHE_DIR")
+    os.chdir(cwd)
+    os.environ["ALPHAPRK_CACHE_DIR"] = str(env_cache)
+    try:
+        with (
+            contextlib.redirect_stdout(stdout),
+            contextlib.redirect_stderr(stderr),
+            warnings.catch_warnings(),
+        ):
+            warnings.simplefilter("default")  # each call shows its warnings, as a new process would
+            try:
+                returncode = main(args)
+            except SystemExit as exit_:  # argparse: --help, usage errors
+                returncode = exit_.code if isinstance(exit_.code, int) else 1
+    finally:
+        os.chdir(previous_cwd)
+        if previous_cache is None:
+            os.environ.pop("ALPHAPRK_CACHE_DIR", None)
+        else:
+            os.environ["ALPHAPRK_CACHE_DIR"] = previous_cache
+    return subprocess.CompletedProcess(
+        ["alphaprk", *args], returncode or 0, stdout.getvalue(), stderr.getvalue()
+    )
 
 
 @pytest.fixture(scope="module")
@@ -58,7 +100,7 @@ def test_script_is_installed():
 
 
 def test_help_explains_every_option_with_units(tmp_path, cache):
-    top = alphaprk("--help", cwd=tmp_path, env_cache=cache).stdout
+    top = alphaprk("--help", cwd=tmp_path, env_cache=cache, process=True).stdout
     for command in ("systems", "run", "compare", "analyze"):
         assert command in top
     assert "leapfrog" in top and "alpha=<number>" in top
@@ -109,7 +151,7 @@ def test_systems_build_uses_the_shipped_state_and_rebuild_builds(tmp_path):
     assert not cache.exists()  # nothing built
     out = alphaprk("systems", "--build", "water-cluster", "--rebuild", cwd=tmp_path, env_cache=cache).stdout
     assert "water-cluster: 222 atoms, cached in" in out and len(list(cache.glob("water-cluster-*"))) == 1
-    refused = alphaprk("systems", "--rebuild", cwd=tmp_path, env_cache=cache, check=False)
+    refused = alphaprk("systems", "--rebuild", cwd=tmp_path, env_cache=cache, check=False, process=True)
     assert refused.returncode == 2 and "--rebuild needs the systems to build" in refused.stderr
 
 

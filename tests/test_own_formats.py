@@ -92,7 +92,8 @@ def test_velocities_come_from_a_restart_file_and_are_drawn_otherwise():
 
 @pytest.mark.parametrize(
     ("files", "options"),
-    [([str(PRMTOP)], []), ([str(FILES / "peptide.psf")], CHARMM)],
+    # the CHARMM files make the AMBER files' system (test_amber_charmm_and_gromacs_files_make_the_same_system)
+    [([str(PRMTOP)], []), pytest.param([str(FILES / "peptide.psf")], CHARMM, marks=pytest.mark.slow)],
     ids=["amber", "charmm"],
 )
 def test_the_energy_mode_holds_a_solvated_peptide_to_a_twentieth_of_rattles_error(
