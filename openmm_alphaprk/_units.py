@@ -1,12 +1,15 @@
-"""Conversion of user input at the package's edges to plain numbers in OpenMM's units.
+"""Checks and conversion of user input at the package's edges: plain numbers in OpenMM's units.
 
-Quantities as Python objects (:func:`to_float`) and as text with a unit, as command lines
-write them (:func:`parse_time`: ``2fs``, :func:`parse_length`: ``8A``).
+Quantities as Python objects (:func:`to_float`), dimensionless numbers
+(:func:`to_dimensionless`), counts (:func:`positive_int`) and text with a unit, as command
+lines write them (:func:`parse_time`: ``2fs``, :func:`parse_length`: ``8A``). The errors
+(:class:`InputError`, :class:`InputTypeError`) name the value and how to fix it.
 """
 
 from __future__ import annotations
 
 import math
+import numbers
 import re
 
 import openmm.unit as unit
@@ -77,6 +80,14 @@ def _checked_float(value: object, name: str, positive: bool, expected: str, symb
     if positive and number <= 0.0:
         raise InputError(f"{name} must be positive, got {number}{symbol}.")
     return number
+
+
+def positive_int(value: object, name: str) -> int:
+    """Return ``value`` as an int if it is a whole number ≥ 1 (integral floats too), else raise InputError."""
+    numeric = isinstance(value, numbers.Real) and not isinstance(value, bool)
+    if not numeric or not math.isfinite(value) or value != int(value) or value < 1:
+        raise InputError(f"{name} must be a positive integer, got {value!r}.")
+    return int(value)
 
 
 # ---------------------------------------------------------------- quantities written as text

@@ -17,7 +17,7 @@ import numpy as np
 import openmm as mm
 import openmm.unit as unit
 
-from ._units import InputError
+from ._units import InputError, positive_int
 
 #: Percentiles of α* reported by runs, benchmarks and reports (as ``p1`` … ``p99``).
 ALPHA_PERCENTILES = (1, 5, 25, 50, 75, 95, 99)
@@ -404,11 +404,3 @@ def alpha_percentiles(alphas: np.ndarray) -> dict[str, float]:
     if finite.size == 0:
         return {f"p{p}": float("nan") for p in ALPHA_PERCENTILES}
     return {f"p{p}": float(v) for p, v in zip(ALPHA_PERCENTILES, np.percentile(finite, ALPHA_PERCENTILES))}
-
-
-def positive_int(value: object, name: str) -> int:
-    """Validate a positive integer argument (integral floats accepted); raise ``ValueError`` naming it."""
-    numeric = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
-    if not numeric or not np.isfinite(value) or value != int(value) or value < 1:
-        raise InputError(f"{name} must be a positive integer, got {value!r}.")
-    return int(value)

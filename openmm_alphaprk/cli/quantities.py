@@ -4,13 +4,16 @@ from __future__ import annotations
 
 import argparse
 
+from .._units import InputError, positive_int
+
 
 def positive(text: str) -> int:
-    """Parse a positive whole number (an argparse ``type``)."""
+    """Parse a positive whole number (an argparse ``type``) by :func:`openmm_alphaprk._units.positive_int`."""
     try:
         value = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be a positive whole number, got {value}")
-    return value
+    try:
+        return positive_int(value, "the number")
+    except InputError:
+        raise argparse.ArgumentTypeError(f"must be a positive whole number, got {value}") from None

@@ -10,8 +10,7 @@ from dataclasses import dataclass
 
 import openmm.unit as unit
 
-from .._units import InputError, InputTypeError, to_dimensionless, to_float
-from ..observables import positive_int
+from .._units import InputError, InputTypeError, positive_int, to_dimensionless, to_float
 from .compositions import TRIPLE_JUMP, Composition
 
 DEFAULT_SLOPE_DAMPING = 0.5
