@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+import fcntl
 import os
+import pickle
 import re
 import warnings
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import openmm as mm
@@ -32,6 +36,28 @@ def temporary_systems_cache(tmp_path_factory):
         os.environ.pop(CACHE_ENV, None)
     else:
         os.environ[CACHE_ENV] = previous
+
+
+def computed_once(request: pytest.FixtureRequest, name: str, compute: Callable[[], Any]) -> Any:
+    """``compute()`` once per test session: under xdist the first worker to ask runs it, the others read it.
+
+    The recipe of pytest-xdist's documentation: the result is pickled into the folder the
+    session's workers share, under a file lock. Without xdist it is computed here. A
+    session fixture that calls this holds one result for every worker, so tests that
+    compare against it (or against each other's use of it) see one run.
+    """
+    worker = getattr(request.config, "workerinput", None)
+    if worker is None:
+        return compute()
+    shared = request.getfixturevalue("tmp_path_factory").getbasetemp().parent
+    result = shared / f"{name}.pickle"
+    with open(shared / f"{name}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if result.exists():
+            return pickle.loads(result.read_bytes())
+        value = compute()
+        result.write_bytes(pickle.dumps(value))
+        return value
 
 
 def _stored_or_built(definition, what: str):

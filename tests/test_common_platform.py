@@ -321,7 +321,6 @@ def _rms_and_drift(residuals):
     return np.sqrt(np.mean(residuals**2)), abs(np.polyfit(np.arange(len(residuals)), residuals, 1)[0])
 
 
-@pytest.mark.xdist_group("tip4pew box")
 @pytest.mark.parametrize("spec", with_precision("mixed") + slow(with_precision("double")))
 def test_tip4pew_with_rattle_and_triple_jump_conserves_energy_like_verlet(tip4pew_box, spec):
     system, x0, v0 = tip4pew_box
@@ -352,7 +351,6 @@ def test_tip4pew_with_rattle_and_triple_jump_conserves_energy_like_verlet(tip4pe
             assert np.max(np.abs(x[i] - expected)) < 1e-5
 
 
-@pytest.mark.xdist_group("tip4pew box")
 @pytest.mark.parametrize("spec", with_precision("double"))
 def test_tip4pew_rattle_follows_verlet_step_for_step(tip4pew_box, spec):
     system, x0, v0 = tip4pew_box
@@ -378,7 +376,6 @@ def test_tip4pew_rattle_follows_verlet_step_for_step(tip4pew_box, spec):
     assert np.max(np.abs(positions_of(context) - positions_of(leap))) < 1e-8
 
 
-@pytest.mark.xdist_group("tip4pew box")
 @pytest.mark.parametrize("spec", configured())
 def test_virtual_sites_refused_where_a_step_cannot_be_right(tip4pew_box, spec):
     system, x0, v0 = tip4pew_box

@@ -14,7 +14,7 @@ import openmm as mm
 import openmm.app as app
 import openmm.unit as unit
 import pytest
-from conftest import REFERENCE, make_context, positions_of, total_energy, velocities_of
+from conftest import REFERENCE, computed_once, make_context, positions_of, total_energy, velocities_of
 
 from openmm_alphaprk import AlphaRattleIntegrator, RattleIntegrator, make_smooth
 from openmm_alphaprk.observables import energy_residuals, rms
@@ -81,21 +81,28 @@ ORDER2_NOT_YET = pytest.mark.xfail(
 )
 
 
-@pytest.fixture(scope="session")  # kept while other modules' tests run in between
-def order4_energy_mode_on_the_water_box(water_box):
+@pytest.fixture(scope="session")
+def order4_energy_mode_on_the_water_box(water_box, request):
     """H − E_ref and the controller's totals of 200 steps of ``energy4`` on the water box (Reference)."""
-    integrator = _energy_mode(4)
-    return _residuals_on(_water(water_box), integrator, 200), integrator.controller_totals()
+
+    def run():
+        integrator = _energy_mode(4)
+        return _residuals_on(_water(water_box), integrator, 200), integrator.controller_totals()
+
+    return computed_once(request, "order4_energy_mode_on_the_water_box", run)
 
 
-@pytest.fixture(scope="session")  # kept while other modules' tests run in between
-def rattle_on_the_water_box(water_box):
+@pytest.fixture(scope="session")
+def rattle_on_the_water_box(water_box, request):
     """RMS and max of H − E_ref over 200 RATTLE steps on the water box (Reference)."""
-    return _rms_and_max(_residuals_on(_water(water_box), RattleIntegrator(2 * unit.femtosecond), 200))
+
+    def run():
+        return _rms_and_max(_residuals_on(_water(water_box), RattleIntegrator(2 * unit.femtosecond), 200))
+
+    return computed_once(request, "rattle_on_the_water_box", run)
 
 
 # order 2 over 200 steps is slow (a minute); test_energy_mode.py checks it over 60 steps by default
-@pytest.mark.xdist_group("energy4 on the water box")
 @pytest.mark.parametrize("order", [pytest.param(2, marks=pytest.mark.slow), 4])
 def test_energy_modes_never_worse_than_rattle_on_a_water_box(
     water_box, order, request, rattle_on_the_water_box
@@ -116,7 +123,6 @@ def test_energy_modes_never_worse_than_rattle_on_a_water_box(
     "docs/research/one_trial_per_step.md, 'One trial per step: what the measurements allow', and "
     "docs/research/short_trials.md",
 )
-@pytest.mark.xdist_group("energy4 on the water box")
 def test_order4_energy_mode_takes_at_most_4_5_force_evaluations_per_step_on_a_water_box(
     order4_energy_mode_on_the_water_box,
 ):
@@ -126,7 +132,6 @@ def test_order4_energy_mode_takes_at_most_4_5_force_evaluations_per_step_on_a_wa
     assert totals["force_evaluations_per_step"] <= 4.5, totals["force_evaluations_per_step"]
 
 
-@pytest.mark.xdist_group("energy4 on the water box")
 def test_short_trials_predict_the_last_substep_and_save_force_evaluations(
     order4_energy_mode_on_the_water_box,
 ):
@@ -143,9 +148,17 @@ def test_short_trials_predict_the_last_substep_and_save_force_evaluations(
     assert totals["force_evaluations_per_step"] <= 5.25, totals  # measured 5.18 (Reference: repeatable)
 
 
-@pytest.fixture(scope="session")  # kept while other modules' tests run in between
-def solute_in_vacuum():
-    """Villin headpiece (OpenMM's test.pdb) without water, in vacuum, X–H bonds constrained."""
+@pytest.fixture(scope="session")
+def solute_in_vacuum(request):
+    """Villin headpiece (OpenMM's test.pdb) without water, in vacuum, X–H bonds constrained.
+
+    Equilibrated on the CPU platform, whose runs are not bitwise repeatable: one start for
+    every test of the session, whichever worker runs it.
+    """
+    return computed_once(request, "solute_in_vacuum", _equilibrated_solute)
+
+
+def _equilibrated_solute() -> tuple:
     pdb = app.PDBFile(str(__import__("pathlib").Path(app.__file__).parent / "data" / "test.pdb"))
     modeller = app.Modeller(pdb.topology, pdb.positions)
     modeller.delete([r for r in modeller.topology.residues() if r.name.upper() in ("HOH", "CL", "NA")])
@@ -165,16 +178,19 @@ def solute_in_vacuum():
     return system, state.getPositions(asNumpy=True), state.getVelocities(asNumpy=True)
 
 
-@pytest.fixture(scope="session")  # kept while other modules' tests run in between
-def order4_energy_mode_on_the_solute(solute_in_vacuum):
+@pytest.fixture(scope="session")
+def order4_energy_mode_on_the_solute(solute_in_vacuum, request):
     """H − E_ref of 300 steps of ``energy4`` on the solute (Reference: the same on every run).
 
     Shared by the tests below; a shorter run is the start of this one.
     """
-    return _residuals_on(solute_in_vacuum, _energy_mode(4), 300)
+    return computed_once(
+        request,
+        "order4_energy_mode_on_the_solute",
+        lambda: _residuals_on(solute_in_vacuum, _energy_mode(4), 300),
+    )
 
 
-@pytest.mark.xdist_group("energy4 on the solute")
 @pytest.mark.parametrize("order", [pytest.param(2, marks=[ORDER2_NOT_YET, pytest.mark.slow]), 4])
 def test_energy_modes_never_worse_than_rattle_on_a_solute_with_hbond_constraints(
     solute_in_vacuum, order, request
@@ -190,7 +206,6 @@ def test_energy_modes_never_worse_than_rattle_on_a_solute_with_hbond_constraints
     assert rms_ <= rattle_rms and worst <= rattle_worst, (rms_, rattle_rms, worst, rattle_worst)
 
 
-@pytest.mark.xdist_group("energy4 on the solute")
 def test_order4_energy_mode_beats_every_fixed_alpha_of_a_scan_on_a_solute(
     solute_in_vacuum, order4_energy_mode_on_the_solute
 ):
