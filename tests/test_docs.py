@@ -83,3 +83,19 @@ def test_readme_signatures_are_the_real_ones():
         assert [(p.name, p.kind, p.default) for p in written.parameters.values()] == [
             (p.name, p.kind, p.default) for p in real.parameters.values()
         ], cls.__name__
+
+
+def test_ci_runs_the_readme_commands():
+    """What .ci/run runs under ``# README: ...`` (up to its next comment) is README text, word for word."""
+    marked, inside = [], False
+    for line in (ROOT / ".ci" / "run").read_text(encoding="utf-8").splitlines():
+        if line.startswith("#"):
+            inside = line.startswith("# README:")
+        elif inside and line.strip():
+            marked.append(line.strip())
+    assert len(marked) >= 4, marked  # install, test, and the two of the documentation
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    blocks = re.findall(r"```bash\n(.*?)```", readme, re.S)
+    readme_commands = {line.strip() for block in blocks for line in block.splitlines()}
+    for command in marked:
+        assert command in readme_commands, f".ci/run runs {command!r}, which the README does not say"
