@@ -11,18 +11,18 @@ import pytest
 
 from openmm_alphaprk import AlphaRattleIntegrator, NonSmoothForcesWarning
 from openmm_alphaprk.integrators.energy_mode import DIAGNOSIS_STEPS
-from openmm_alphaprk.systems import prepare_system
 
 
 @pytest.fixture(scope="module")
-def water():
-    return prepare_system("tip3p-2nm")
+def water(water_box):
+    """The test water box (1.8 nm, smooth forces: LJ switch, Ewald tolerance 1e-5)."""
+    return water_box
 
 
 def _rough(water) -> mm.System:
     """The same box as ForceField.createSystem makes it: no LJ switch, Ewald tolerance 5e-4."""
     return app.ForceField("amber14/tip3p.xml").createSystem(
-        water.topology, nonbondedMethod=app.PME, nonbondedCutoff=0.9 * unit.nanometer, removeCMMotion=False
+        water.topology, nonbondedMethod=app.PME, nonbondedCutoff=0.8 * unit.nanometer, removeCMMotion=False
     )
 
 
