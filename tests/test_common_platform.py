@@ -332,11 +332,11 @@ def test_tip4pew_with_rattle_and_triple_jump_conserves_energy_like_verlet(tip4pe
     )
     (verlet_rms, _), (rattle_rms, rattle_drift) = _rms_and_drift(verlet), _rms_and_drift(rattle)
     triple_rms, triple_drift = _rms_and_drift(triple)
-    # measured on OpenCL (pocl, double and mixed), kJ/mol: RMS Verlet 0.34, RATTLE 0.48, triple
-    # jump 0.041; |drift| per step, from two starts (the box is built per run): Verlet 1.2e-3 and
-    # 8.8e-5, RATTLE 5.9e-4 and 2.0e-4, triple jump 2.3e-4 (Verlet's H takes its leapfrog kinetic
-    # energy; the trajectories are the same, next test). Over 200 steps a drift is mostly noise,
-    # so it is bounded absolutely. Forces with stale M-sites, what the Reference and CPU
+    # measured on OpenCL (pocl, mixed) from the stored start, kJ/mol: RMS Verlet 0.50, RATTLE
+    # 0.63, triple jump 0.030; |drift| per step Verlet 4.9e-5, RATTLE 4.6e-4, triple jump 1.7e-4
+    # (Verlet's H takes its leapfrog kinetic energy; the trajectories are the same, next test).
+    # From boxes built per run (other starts) the drifts ranged over 8.8e-5 to 1.2e-3: over 200
+    # steps a drift is mostly noise, so it is bounded absolutely. Forces with stale M-sites, what the Reference and CPU
     # platforms would give, are off by > 1 kJ/mol/nm (test_openmm_integrators)
     assert rattle_rms < 2.0 * verlet_rms
     assert rattle_drift < 0.002
