@@ -336,8 +336,8 @@ def test_tip4pew_with_rattle_and_triple_jump_conserves_energy_like_verlet(tip4pe
     # 0.63, triple jump 0.030; |drift| per step Verlet 4.9e-5, RATTLE 4.6e-4, triple jump 1.7e-4
     # (Verlet's H takes its leapfrog kinetic energy; the trajectories are the same, next test).
     # From boxes built per run (other starts) the drifts ranged over 8.8e-5 to 1.2e-3: over 200
-    # steps a drift is mostly noise, so it is bounded absolutely. Forces with stale M-sites, what the Reference and CPU
-    # platforms would give, are off by > 1 kJ/mol/nm (test_openmm_integrators)
+    # steps a drift is mostly noise, so it is bounded absolutely. Forces with stale M-sites, what
+    # the Reference and CPU platforms would give, are off by > 1 kJ/mol/nm (test_openmm_integrators)
     assert rattle_rms < 2.0 * verlet_rms
     assert rattle_drift < 0.002
     assert triple_rms < 0.2 * rattle_rms
