@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import fcntl
+import hashlib
 import os
 import pickle
 import re
@@ -50,8 +51,9 @@ def computed_once(request: pytest.FixtureRequest, name: str, compute: Callable[[
     if worker is None:
         return compute()
     shared = request.getfixturevalue("tmp_path_factory").getbasetemp().parent
-    result = shared / f"{name}.pickle"
-    with open(shared / f"{name}.lock", "w") as lock:
+    stem = re.sub(r"[^\w.=-]", "_", name) + "-" + hashlib.sha1(name.encode()).hexdigest()[:8]
+    result = shared / f"{stem}.pickle"
+    with open(shared / f"{stem}.lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
         if result.exists():
             return pickle.loads(result.read_bytes())
