@@ -84,13 +84,18 @@ def water_box():
 
 
 @pytest.fixture(scope="session")
-def tip4pew_box():
-    """A 1.8 nm TIP4P-Ew box (quick_systems.TIP4PEW_BOX) from its stored start state: system, x, v.
+def tip4pew_prepared():
+    """A 1.8 nm TIP4P-Ew box (quick_systems.TIP4PEW_BOX) from its stored start state, as the driver takes it.
 
     If no stored state matches the definition, it is built with a warning.
     """
-    box = _stored_or_built(TIP4PEW_BOX, "the test TIP4P-Ew box")
-    return box.system, box.positions, box.velocities
+    return _stored_or_built(TIP4PEW_BOX, "the test TIP4P-Ew box")
+
+
+@pytest.fixture(scope="session")
+def tip4pew_box(tip4pew_prepared):
+    """The test TIP4P-Ew box as (system, positions, velocities)."""
+    return tip4pew_prepared.system, tip4pew_prepared.positions, tip4pew_prepared.velocities
 
 
 def make_context(system, integrator, positions, velocities, platform=REFERENCE):
