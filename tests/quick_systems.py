@@ -37,7 +37,7 @@ def stored_water_box(definition=WATER_BOX) -> PreparedSystem | None:
 
 
 #: Minimization and equilibration cut short: the build path is the real one, only shorter.
-QUICK = {"equilibration.minimize_max_iterations": 50, "equilibration.langevin_steps": 10}
+QUICK = {"equilibration.minimize_max_iterations": 10, "equilibration.langevin_steps": 10}
 #: The same on the Reference platform: the same start state on every run.
 QUICK_REFERENCE = {**QUICK, "equilibration.platform": "Reference"}
 
