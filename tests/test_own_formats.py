@@ -156,7 +156,7 @@ def test_tip4pew_as_a_serialized_system_gets_the_virtual_site_refusal_on_the_cpu
         check_compatible("energy4", prepared.system, "tip4pew", "OpenCL")
 
 
-def _hmr_run(tmp_path, integrator: str, steps: int):
+def _hmr_run(tmp_path, integrator: str, steps: int, energy_interval: int = 10):
     definition = file_definition(PRMTOP, FileOptions(hydrogen_mass_amu=3.0))
     from openmm_alphaprk.runs import run_nve
 
@@ -166,15 +166,22 @@ def _hmr_run(tmp_path, integrator: str, steps: int):
         tmp_path / integrator,
         steps=steps,
         timestep=0.004,
-        energy_interval=10,
+        energy_interval=energy_interval,
         progress=False,
     )
 
 
-@pytest.mark.parametrize("integrator", ["rattle", "energy4"])
-def test_four_fs_with_repartitioned_hydrogens_runs(tmp_path, integrator):
-    summary = _hmr_run(tmp_path, integrator, 100)
-    assert summary.steps == 100 and np.isfinite(summary.rms_residual)
+def test_four_fs_with_repartitioned_hydrogens_runs_and_the_energy_mode_holds_h(tmp_path):
+    """50 steps of 4 fs, hydrogens of 3 Da, H read every 5 steps.
+
+    Measured (CPU platform), RMS(H − E_ref): RATTLE 12.5 kJ/mol, energy4 0.019 (1/660) at
+    11.7 force evaluations per step.
+    """
+    rattle, held = (_hmr_run(tmp_path, name, 50, energy_interval=5) for name in ("rattle", "energy4"))
+    for summary in (rattle, held):
+        assert summary.steps == 50 and summary.max_relative_constraint_error < 1e-6
+    assert 5.0 < rattle.rms_residual < 25.0
+    assert held.rms_residual < rattle.rms_residual / 100, (held.rms_residual, rattle.rms_residual)
 
 
 @pytest.mark.slow
