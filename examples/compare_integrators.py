@@ -8,11 +8,18 @@ The same as ``alphaprk compare``, from Python:
 import argparse
 
 from openmm_alphaprk.workflows import compare
+from openmm_alphaprk.workflows.comparison import ACCURACY_STEPS
 
 parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
 parser.add_argument("--system", default="tip3p-2nm", help="system name (alphaprk systems); default tip3p-2nm")
 parser.add_argument("--steps", type=int, default=500, help="NVE steps of 2 fs per integrator (default 500)")
 parser.add_argument("--output", default="compare-example", help="output folder")
+parser.add_argument(
+    "--accuracy-steps",
+    type=int,
+    default=ACCURACY_STEPS,
+    help=f"steps after which each row's position error is measured (default {ACCURACY_STEPS}; 0: none)",
+)
 args = parser.parse_args()
 
 result = compare(
@@ -24,6 +31,7 @@ result = compare(
     steps=args.steps,
     timestep=0.002,  # ps
     energy_interval=5,
+    accuracy_steps=args.accuracy_steps,
 )
 print(result.table)
 for summary in result.summaries:

@@ -42,8 +42,9 @@ def test_dropin_simulation_script(tmp_path, env):
 
 
 def test_compare_script(tmp_path, env):
-    out = _run("compare_integrators.py", "--steps", "6", "--output", "cmp", cwd=tmp_path, env=env)
-    assert "alpha=1/6" in out and "figure:" in out
+    args = ["--steps", "6", "--accuracy-steps", "2", "--output", "cmp"]
+    out = _run("compare_integrators.py", *args, cwd=tmp_path, env=env)
+    assert "alpha=1/6" in out and "figure:" in out and "pos. error" in out
     assert (tmp_path / "cmp" / "energy_residuals.png").is_file()
 
 
