@@ -83,6 +83,27 @@ def water_box():
     return _stored_or_built(WATER_BOX, "the test water box")
 
 
+#: Steps of the shared RATTLE run on the water box; tests that need fewer take its prefix.
+RATTLE_STEPS_ON_THE_WATER_BOX = 200
+
+
+@pytest.fixture(scope="session")
+def rattle_residuals_on_the_water_box(water_box, request) -> np.ndarray:
+    """H − E_ref after each of 200 RATTLE steps of 2 fs on the water box, Reference platform.
+
+    One run for the session: Reference repeats a run bitwise, so its first n residuals
+    are those of an n-step run from the same start.
+    """
+    from openmm_alphaprk import RattleIntegrator
+
+    def run():
+        integrator = RattleIntegrator(0.002)
+        context = make_context(water_box.system, integrator, water_box.positions, water_box.velocities)
+        return observables.energy_residuals(context, integrator, RATTLE_STEPS_ON_THE_WATER_BOX).residuals
+
+    return computed_once(request, "rattle_residuals_on_the_water_box", run)
+
+
 @pytest.fixture(scope="session")
 def tip4pew_prepared():
     """A 1.8 nm TIP4P-Ew box (quick_systems.TIP4PEW_BOX) from its stored start state, as the driver takes it.

@@ -142,21 +142,22 @@ def test_energy_mode_takes_alpha_on_one_stage():
     assert integrator.composition.alpha_stages == (2,)
 
 
-def test_the_default_energy_mode_holds_h_on_a_water_box_at_the_measured_cost(water_box):
+def test_the_default_energy_mode_holds_h_on_a_water_box_at_the_measured_cost(
+    water_box, rattle_residuals_on_the_water_box
+):
     """order=4 (Suzuki) energy mode, Reference, 60 steps of 2 fs on the 1.8 nm test box.
 
     Measured: RMS(H − E_ref) 0.0028 kJ/mol (RATTLE 0.88, Suzuki at α = 0 0.0083) at 8.32
     evaluations per step, 98 % of steps within the automatic tolerance; the benchmarks
     measured 8.5–9.4 evaluations on the shipped boxes (docs/compositions.md).
     """
-    from openmm_alphaprk import RattleIntegrator
     from openmm_alphaprk.observables import energy_residuals, rms
 
     def energy_rms(integrator):
         context = make_context(water_box.system, integrator, water_box.positions, water_box.velocities)
         return rms(energy_residuals(context, integrator, 60).residuals)
 
-    rattle = energy_rms(RattleIntegrator(0.002))
+    rattle = rms(rattle_residuals_on_the_water_box[:60])  # the first 60 steps of the session's RATTLE run
     composed = energy_rms(AlphaRattleIntegrator(0.002, 0.0, order=4))
     integrator = AlphaRattleIntegrator(0.002, "energy", order=4)
     held = energy_rms(integrator)
