@@ -261,6 +261,8 @@ def test_compare_prints_the_table(tmp_path, cache, quick_definition):
         "4",
         "--energy-interval",
         "2",
+        "--accuracy-steps",
+        "2",
         "--quiet",
         "-o",
         "cmp",
@@ -271,6 +273,7 @@ def test_compare_prints_the_table(tmp_path, cache, quick_definition):
     assert any(line.startswith("rattle ") for line in lines)
     assert any(line.startswith("energy ") for line in lines)
     assert "leapfrog" in result.stdout and (tmp_path / "cmp" / "energy_residuals.png").is_file()
+    assert "pos. error" in result.stdout  # after 2 steps (--accuracy-steps)
 
 
 def test_run_prints_a_table_and_where_the_files_are(tmp_path, cache, quick_definition):

@@ -294,9 +294,11 @@ def test_compare_table_figure_and_json(box, tmp_path):
         energy_interval=2,
         progress=False,
         equal_cost=False,
+        accuracy_steps=2,
     )
     assert [s.integrator for s in result.summaries] == ["rattle", "alpha=1/6", "verlet"]
     assert "drift/DOF" in result.table and "kJ/mol/ns" in result.table and "leapfrog" in result.table
+    assert set(result.accuracy) == {"rattle", "alpha=1/6"}  # not verlet: leapfrog velocities
     assert result.figure.is_file() and result.figure.stat().st_size > 1000
     data = json.loads((tmp_path / "comparison.json").read_text(encoding="utf-8"))
     assert len(data["summaries"]) == 3 and (tmp_path / "alpha=1_6" / "summary.json").is_file()
