@@ -171,12 +171,14 @@ def _residuals(context, integrator, steps, e_ref, steps_per_sample=1):
     ).residuals
 
 
-#: The platform reorders atoms when 250 steps or position uploads have passed since its last
-#: reorder (``ComputeContext::reorderAtoms``). The reordering test uploads the start this
-#: many times more before its first step, so the reorder falls at step 51, after the
-#: order-4 controller's short trials have begun, and runs ``REORDERING_STEPS`` steps.
+#: The platform reorders atoms when this many steps or position uploads have passed since
+#: its last reorder (``ComputeContext::reorderAtoms``), at the end of the step after them.
+REORDER_INTERVAL = 250
+#: The reordering test uploads the start this many times more before its first step, so the
+#: reorder falls at step ``REORDER_STEP`` (51), after the order-4 controller's short trials
+#: have begun, and runs ``REORDERING_STEPS`` steps.
 UPLOADS_BEFORE_REORDERING_RUN = 200
-REORDER_STEP = 51
+REORDER_STEP = REORDER_INTERVAL - UPLOADS_BEFORE_REORDERING_RUN + 1
 REORDERING_STEPS = 100
 #: RMS(H − E_ref) of RATTLE over those steps (H read every second step) from the test box,
 #: kJ/mol: 0.935 measured on OpenCL (pocl, mixed); the stored start makes it the same on
@@ -208,8 +210,8 @@ def _steps_since_reorder(context: mm.Context) -> tuple[int, int]:
     return step_count, since_reorder
 
 
-def _reordered_at_step_51(context: mm.Context) -> None:
-    """Upload the context's positions until the platform's next reorder falls at step 51."""
+def _bring_the_reorder_forward(context: mm.Context) -> None:
+    """Upload the context's positions until the platform's next reorder falls at ``REORDER_STEP``."""
     positions = context.getState(getPositions=True).getPositions(asNumpy=True)
     for _ in range(UPLOADS_BEFORE_REORDERING_RUN):
         context.setPositions(positions)
@@ -221,11 +223,11 @@ def _reordered_at_step_51(context: mm.Context) -> None:
 @pytest.mark.parametrize("order, fraction_of_rattle", [(4, 1 / 20), (2, 1 / 2)])
 @pytest.mark.parametrize("spec", with_precision("mixed"))
 def test_energy_modes_keep_one_reference_energy_across_reordering(water_box, spec, order, fraction_of_rattle):
-    """The run crosses the platform's atom reordering (at step 51) and re-wrapping."""
+    """The run crosses the platform's atom reordering (at ``REORDER_STEP``) and re-wrapping."""
     integrator = AlphaRattleIntegrator(H, "energy", order=order)
     context = _context(water_box.system, integrator, spec, water_box.positions, water_box.velocities)
     e_ref = total_energy(context)
-    _reordered_at_step_51(context)
+    _bring_the_reorder_forward(context)
     # H read after every second step: each read is one more energy evaluation
     before = _residuals(context, integrator, REORDER_STEP - 1, e_ref, steps_per_sample=2)
     totals_before = integrator.controller_totals()
