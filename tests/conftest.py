@@ -24,6 +24,19 @@ from openmm_alphaprk.systems import CACHE_ENV, prepare_system
 REFERENCE = mm.Platform.getPlatformByName("Reference")
 
 
+def pytest_configure(config: pytest.Config) -> None:
+    """One pocl thread per test worker when there is a worker per core (``pytest -n auto``).
+
+    pocl (OpenCL on the CPU) splits every kernel over one thread per core and waits for all
+    of them; with a worker per core, one worker's kernels wait for threads the other
+    workers' processes have taken off the cores. pocl reads ``POCL_MAX_PTHREAD_COUNT`` when
+    the first OpenCL context is made; the kernels and their results are the same.
+    """
+    workers = getattr(config, "workerinput", {}).get("workercount", 1)
+    if workers >= (os.cpu_count() or 1):
+        os.environ.setdefault("POCL_MAX_PTHREAD_COUNT", "1")
+
+
 @pytest.fixture(scope="session", autouse=True)
 def temporary_systems_cache(tmp_path_factory):
     """Point ``$ALPHAPRK_CACHE_DIR`` at a folder of this session: tests never write into the user's cache.
