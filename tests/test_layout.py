@@ -10,6 +10,8 @@ docs/ (tools/, outside the package) may import anything of it.
 from __future__ import annotations
 
 import ast
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -114,3 +116,17 @@ def test_a_script_does_its_work_only_when_run(path):
             calls = [n for n in ast.walk(node) if isinstance(n, ast.Call)]
             assert not any("argv" in ast.unparse(c) for c in calls), f"{path.name}:{node.lineno} reads argv"
     assert guarded, f"{path.name} has no if __name__ == '__main__' block"
+
+
+def test_the_command_line_imports_neither_mdanalysis_nor_dask_until_a_command_needs_them():
+    """``openmm_alphaprk.workflows`` imports a module on first use of one of its names."""
+    probe = (
+        "import sys\n"
+        "import openmm_alphaprk.cli\n"
+        "from openmm_alphaprk.workflows import compare\n"
+        "assert not {'MDAnalysis', 'dask'} & {name.split('.')[0] for name in sys.modules}, 'imported early'\n"
+        "from openmm_alphaprk.workflows import analyze_run\n"
+        "assert 'MDAnalysis' in sys.modules\n"
+    )
+    result = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
