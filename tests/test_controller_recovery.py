@@ -231,17 +231,8 @@ def test_a_corrupted_prediction_is_recovered_without_throwing_alpha_to_its_bound
 
     The first trial then moves α the wrong way; the second trial measures the slope,
     the fits relearn it, and α stays well inside its bounds while H − E_ref returns
-    to the level of an undisturbed run.
+    to the level of the undisturbed run from the same state (a checkpoint).
     """
-    undisturbed = _energy_mode(4)
-    context = make_context(water_box.system, undisturbed, water_box.positions, water_box.velocities, CPU)
-    undisturbed.step(60)
-    reference = undisturbed.getGlobalVariableByName("reference_energy")
-    quiet = [abs(total_energy(context) - reference)]
-    for _ in range(40):
-        undisturbed.step(1)
-        quiet.append(abs(total_energy(context) - reference))
-
     integrator = _energy_mode(4)
     context = make_context(water_box.system, integrator, water_box.positions, water_box.velocities, CPU)
     # the prediction starts after 20 steps with a measured slope (two or more trials); how many
@@ -251,6 +242,13 @@ def test_a_corrupted_prediction_is_recovered_without_throwing_alpha_to_its_bound
         integrator.step(10)
     assert integrator.getGlobalVariableByName("use_prediction") == 1
     reference = integrator.getGlobalVariableByName("reference_energy")
+    branch = context.createCheckpoint()
+    quiet = []
+    for _ in range(41):
+        integrator.step(1)
+        quiet.append(abs(total_energy(context) - reference))
+
+    context.loadCheckpoint(branch)
     prediction = _ar2_prediction(integrator, "slope")
     for name in ("slope_lag1", "slope_lag2"):
         integrator.setGlobalVariableByName(name, -integrator.getGlobalVariableByName(name))
@@ -263,7 +261,9 @@ def test_a_corrupted_prediction_is_recovered_without_throwing_alpha_to_its_bound
         residuals.append(abs(total_energy(context) - reference))
     low, high = integrator.alpha_bounds
     assert max(np.abs(alphas)) < 0.5 * high
-    assert np.sqrt(np.mean(np.square(residuals[10:]))) < 2 * np.sqrt(np.mean(np.square(quiet[10:]))) + 0.005
+    # the last 30 steps of both branches; measured (CPU, three runs): max |α| 0.022-0.025,
+    # RMS 0.0051-0.0060 kJ/mol against 0.0055-0.0059 undisturbed
+    assert rms(residuals[10:]) < 2 * rms(quiet[11:]), (rms(residuals[10:]), rms(quiet[11:]))
 
 
 def _ar2_prediction(integrator: AlphaRattleIntegrator, series: str) -> float:
