@@ -12,6 +12,7 @@ import openmm as mm
 import openmm.app as app
 import openmm.unit as unit
 import pytest
+from quick_systems import QUICK
 
 from openmm_alphaprk import AlphaRattleIntegrator
 from openmm_alphaprk.cli import main
@@ -323,15 +324,20 @@ def test_tip4pew_files_get_the_virtual_site_refusal_for_the_energy_mode_with_exi
 
 
 def test_equilibrate_runs_a_seeded_langevin_first_and_caches_the_start(water_files, tmp_path):
+    """The option's protocol: at most 500 minimization steps, then 0.02 ps of Langevin (10 steps).
+
+    The builds here minimize at most 10 steps (``QUICK``; the protocol is otherwise the
+    option's): 500 on this box took 13 s on two cores, most of this test's time.
+    """
     folder, prepared = water_files
     options = FileOptions(forcefield=TIP3P, equilibrate_ps=0.02, seed=3)
     definition = file_definition(folder / "water.pdb", options)
-    assert (
-        definition.equilibration["langevin_steps"] == 10
-        and definition.equilibration["minimize_max_iterations"]
+    assert definition.equilibration["langevin_steps"] == QUICK["equilibration.langevin_steps"] == 10
+    assert definition.equilibration["minimize_max_iterations"] == 500
+    first = prepare_system(definition, cache_dir=tmp_path / "cache", overrides=QUICK)
+    again = prepare_system(
+        file_definition(folder / "water.pdb", options), cache_dir=tmp_path / "cache", overrides=QUICK
     )
-    first = prepare_system(definition, cache_dir=tmp_path / "cache")
-    again = prepare_system(file_definition(folder / "water.pdb", options), cache_dir=tmp_path / "cache")
     assert (first.source, again.source) == ("built", "cache")
     assert np.array_equal(first.positions, again.positions)
     assert np.abs(first.positions - prepared.positions).max() > 1e-3  # moved by minimization and dynamics
