@@ -36,6 +36,9 @@ parser.add_argument(
     "--order", type=int, default=4, choices=(2, 4), help="4: α-RATTLE-4 (default), 2: α-RATTLE"
 )
 parser.add_argument("--output", default="dropin-run", help="folder for the CSV, DCD and checkpoint")
+parser.add_argument(
+    "--minimize-steps", type=int, default=200, help="at most this many minimization steps (default 200)"
+)
 args = parser.parse_args()
 out = Path(args.output)
 out.mkdir(exist_ok=True)
@@ -55,7 +58,7 @@ integrator = AlphaRattleIntegrator(2 * unit.femtoseconds, alpha=alpha, order=arg
 simulation = app.Simulation(modeller.topology, system, integrator, mm.Platform.getPlatformByName("CPU"))
 integrator.check_context(simulation.context)  # the platform's precision, and the System's warnings
 simulation.context.setPositions(modeller.positions)
-simulation.minimizeEnergy(maxIterations=200)
+simulation.minimizeEnergy(maxIterations=args.minimize_steps)
 simulation.context.setVelocitiesToTemperature(300 * unit.kelvin, 1)
 simulation.context.applyVelocityConstraints(1e-10)
 

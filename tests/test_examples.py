@@ -34,7 +34,8 @@ def _run(script: str, *args, cwd, env) -> str:
 
 
 def test_dropin_simulation_script(tmp_path, env):
-    out = _run("simulation_dropin.py", "--steps", "20", "--output", "run", cwd=tmp_path, env=env)
+    args = ["--steps", "20", "--minimize-steps", "50", "--output", "run"]
+    out = _run("simulation_dropin.py", *args, cwd=tmp_path, env=env)
     assert "force evaluations per step" in out
     assert re.search(r"^CMMotionRemover \(force \d+\): removed", out, re.M)  # createSystem's default
     rows = (tmp_path / "run" / "energies.csv").read_text(encoding="utf-8").splitlines()
