@@ -110,9 +110,8 @@ def rattle_residuals_on_the_water_box(water_box, request) -> np.ndarray:
     from openmm_alphaprk import RattleIntegrator
 
     def run():
-        integrator = RattleIntegrator(0.002)
-        context = make_context(water_box.system, integrator, water_box.positions, water_box.velocities)
-        return observables.energy_residuals(context, integrator, RATTLE_STEPS_ON_THE_WATER_BOX).residuals
+        problem = water_box.system, water_box.positions, water_box.velocities
+        return residuals_on(problem, RattleIntegrator(0.002), RATTLE_STEPS_ON_THE_WATER_BOX)
 
     return computed_once(request, "rattle_residuals_on_the_water_box", run)
 
@@ -137,6 +136,13 @@ def make_context(system, integrator, positions, velocities, platform=REFERENCE):
     context.setPositions(positions)
     context.setVelocities(velocities)
     return context
+
+
+def residuals_on(problem, integrator: mm.Integrator, steps: int, platform=REFERENCE) -> np.ndarray:
+    """H − E_ref after each of ``steps`` steps from ``problem`` (system, positions, velocities)."""
+    system, positions, velocities = problem
+    context = make_context(system, integrator, positions, velocities, platform)
+    return observables.energy_residuals(context, integrator, steps).residuals
 
 
 def positions_of(context) -> np.ndarray:

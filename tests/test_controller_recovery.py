@@ -14,7 +14,15 @@ import openmm as mm
 import openmm.app as app
 import openmm.unit as unit
 import pytest
-from conftest import REFERENCE, computed_once, make_context, positions_of, total_energy, velocities_of
+from conftest import (
+    REFERENCE,
+    computed_once,
+    make_context,
+    positions_of,
+    residuals_on,
+    total_energy,
+    velocities_of,
+)
 
 from openmm_alphaprk import AlphaRattleIntegrator, RattleIntegrator, make_smooth
 from openmm_alphaprk.observables import energy_residuals, rms
@@ -60,13 +68,6 @@ def test_residual_beyond_alpha_authority_is_reduced_not_grown(water_box):
     assert residuals[-1] < 9.0, residuals[::10]
 
 
-def _residuals_on(problem, integrator: mm.Integrator, steps: int, platform=REFERENCE) -> np.ndarray:
-    """H − E_ref after each of ``steps`` steps from ``problem`` (system, positions, velocities)."""
-    system, positions, velocities = problem
-    context = make_context(system, integrator, positions, velocities, platform)
-    return energy_residuals(context, integrator, steps).residuals
-
-
 def _rms_and_max(residuals: np.ndarray) -> tuple[float, float]:
     return rms(residuals), float(np.abs(residuals).max())
 
@@ -110,7 +111,7 @@ def test_energy_modes_never_worse_than_rattle_on_a_water_box(
         totals = request.getfixturevalue("order4_energy_mode_on_the_water_box")
         steps, rms_, worst = totals["steps"], totals["rms_residual"], totals["max_abs_residual"]
     else:
-        residuals = _residuals_on(_water(water_box), _energy_mode(order), 200)
+        residuals = residuals_on(_water(water_box), _energy_mode(order), 200)
         steps, (rms_, worst) = len(residuals), _rms_and_max(residuals)
     assert steps == len(rattle_residuals_on_the_water_box)
     # measured (order 4): RMS 0.0061, maximum 0.0217 kJ/mol; RATTLE 0.858 and 1.73
@@ -188,7 +189,7 @@ def order4_energy_mode_on_the_solute(solute_in_vacuum, request):
     return computed_once(
         request,
         "order4_energy_mode_on_the_solute",
-        lambda: _residuals_on(solute_in_vacuum, _energy_mode(4), 200, CPU),
+        lambda: residuals_on(solute_in_vacuum, _energy_mode(4), 200, CPU),
     )
 
 
@@ -201,11 +202,11 @@ def test_energy_modes_never_worse_than_rattle_on_a_solute_with_hbond_constraints
     """
     steps = 200
     platform = CPU if order == 4 else REFERENCE
-    rattle = _residuals_on(solute_in_vacuum, RattleIntegrator(2 * unit.femtosecond), steps, platform)
+    rattle = residuals_on(solute_in_vacuum, RattleIntegrator(2 * unit.femtosecond), steps, platform)
     if order == 4:
         residuals = request.getfixturevalue("order4_energy_mode_on_the_solute")
     else:
-        residuals = _residuals_on(solute_in_vacuum, _energy_mode(order), steps, platform)
+        residuals = residuals_on(solute_in_vacuum, _energy_mode(order), steps, platform)
     assert len(residuals) == len(rattle)
     (rms_, worst), (rattle_rms, rattle_worst) = _rms_and_max(residuals), _rms_and_max(rattle)
     assert rms_ <= rattle_rms and worst <= rattle_worst, (rms_, rattle_rms, worst, rattle_worst)
@@ -222,7 +223,7 @@ def test_order4_energy_mode_beats_every_fixed_alpha_of_a_scan_on_a_solute(
     steps = 100
     fixed = {
         alpha: rms(
-            _residuals_on(
+            residuals_on(
                 solute_in_vacuum,
                 AlphaRattleIntegrator(0.002, alpha=alpha, composition="triple-jump"),
                 steps,
