@@ -27,13 +27,12 @@ extensions = [
 
 source_suffix = {".md": "markdown", ".rst": "restructuredtext"}
 root_doc = "index"
-# Data, logs and run tables live beside the pages; they are linked, not built.
+# Data (docs/data/<page>/: JSON, logs, run tables), the sweep's configuration and the
+# figures live beside the pages; they are linked, not built.
 exclude_patterns = [
     "_build",
+    "data",
     "sweeps",
-    "proof",
-    "own_files",
-    "cuda_h100",
     "figures",
 ]
 

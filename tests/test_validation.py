@@ -2,8 +2,8 @@
 
 Each test recomputes its claim on a smaller scale than the page (fewer steps or
 step sizes) and fails if the claim is false; the numbers in the comments are the
-page's (docs/validation.json). The last tests check that the page's tables are
-the ones ``python -m tools.reports.validation`` renders from docs/validation.json.
+page's (docs/data/validation/validation.json). The last tests check that the page's tables are
+the ones ``python -m tools.reports.validation`` renders from docs/data/validation/validation.json.
 Already asserted elsewhere (the page refers to them): orders 2 and 4 on the spring
 pendulum and α-RATTLE-4's α* = O(h²) there (test_reference_theory.py,
 test_order4.py), symplecticity of fixed α against one pass, momenta on small
@@ -19,7 +19,7 @@ import openmm.unit as unit
 import pytest
 from conftest import computed_once, positions_of, total_energy, velocities_of
 
-from openmm_alphaprk import AlphaRattleIntegrator, RattleIntegrator
+from openmm_alphaprk import AlphaRattleEnergyIntegrator, AlphaRattleIntegrator, RattleIntegrator
 from openmm_alphaprk.observables import convergence_order
 from openmm_alphaprk.reference import (
     alpha_rattle4_step,
@@ -279,8 +279,8 @@ def test_openmm_water_cluster_invariants_on_reference_with_the_driver_defaults(
     steps = 500
     runs = {
         "alpha=1/6": AlphaRattleIntegrator(0.002, 1 / 6, 1e-8),
-        "energy": AlphaRattleIntegrator(0.002, "energy", 1e-8),
-        "energy4": AlphaRattleIntegrator(0.002, "energy", 1e-8, composition="triple-jump"),
+        "energy": AlphaRattleEnergyIntegrator(0.002, 1e-8),
+        "energy4": AlphaRattleEnergyIntegrator(0.002, 1e-8, composition="triple-jump"),
     }
     results = {name: _invariant_changes(cluster, integrator, steps) for name, integrator in runs.items()}
     results["rattle"] = rattle_invariants_on_the_cluster
@@ -303,8 +303,8 @@ def test_openmm_water_cluster_invariants_on_reference_with_the_driver_defaults(
 
 def test_openmm_energy_mode_angular_momentum_is_set_by_the_midpoint_tolerance(cluster):
     # the default without a periodic box (1e-13 nm) against the periodic-box default (1e-7 nm)
-    tight = AlphaRattleIntegrator(0.002, "energy", 1e-8)
-    loose = AlphaRattleIntegrator(0.002, "energy", 1e-8, midpoint_tolerance=1e-7)
+    tight = AlphaRattleEnergyIntegrator(0.002, 1e-8)
+    loose = AlphaRattleEnergyIntegrator(0.002, 1e-8, midpoint_tolerance=1e-7)
     dl_tight = _invariant_changes(cluster, tight, 300)[0]
     dl_loose = _invariant_changes(cluster, loose, 300)[0]
     # page (40 ps): 2.7e-11 (1e-12 nm) against 2.0e-6 relative, at twice the force evaluations per step
@@ -320,7 +320,7 @@ def test_openmm_water_cluster_on_cpu_momenta_are_limited_by_single_precision_for
     reference = rattle_invariants_on_the_cluster
     cpu = _invariant_changes(cluster, RattleIntegrator(0.002, 1e-8), 500, platform="CPU")
     energy4 = _invariant_changes(
-        cluster, AlphaRattleIntegrator(0.002, "energy", 1e-8, composition="triple-jump"), 500, "CPU"
+        cluster, AlphaRattleEnergyIntegrator(0.002, 1e-8, composition="triple-jump"), 500, "CPU"
     )
     # page (40 ps): ~1e-6 relative for every integrator on CPU, 2.8e-12 for RATTLE on Reference
     assert cpu[0] > 1e3 * reference[0] and cpu[1] > 1e3 * reference[1]
@@ -375,7 +375,7 @@ def test_openmm_energy_modes_on_the_774_atom_box(tmp_path):
 
 # ------------------------------------------------------------------- the page itself
 def test_page_tables_are_the_ones_rendered_from_the_json():
-    data = json.loads((DOCS / "validation.json").read_text(encoding="utf-8"))
+    data = json.loads((DOCS / "data" / "validation" / "validation.json").read_text(encoding="utf-8"))
     assert not data["quick"]
     rendered = validation_tables.render_tables(data)
     on_page = markdown.page_tables(DOCS / "validation.md")

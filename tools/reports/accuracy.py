@@ -1,6 +1,6 @@
 r"""The tables of docs/accuracy.md from the JSON of ``alphaprk bench accuracy``.
 
-Run from the repository root, after the benchmark wrote ``docs/accuracy_benchmark_SYSTEM.json``::
+Run from the repository root, after the benchmark wrote ``docs/data/accuracy/accuracy_benchmark_SYSTEM.json``::
 
     python -m tools.reports.accuracy
 
@@ -137,7 +137,7 @@ def momentum_table(result: dict) -> str:
 def main() -> None:
     systems = {}
     for system in SYSTEMS:
-        path = DOCS / f"accuracy_benchmark_{system}.json"
+        path = DOCS / "data" / "accuracy" / f"accuracy_benchmark_{system}.json"
         if path.is_file():
             systems[system] = json.loads(path.read_text(encoding="utf-8"))["systems"][system]
     tables = {}

@@ -1,7 +1,7 @@
 r"""The tables of docs/compositions.md from the JSON of ``alphaprk bench accuracy``.
 
-Run from the repository root, after the benchmarks wrote ``docs/compositions_accuracy_2fs*.json``
-and ``docs/compositions_accuracy_4fs*.json`` (one or more files per step)::
+Run from the repository root, after the benchmarks wrote ``docs/data/compositions/compositions_accuracy_2fs*.json``
+and ``docs/data/compositions/compositions_accuracy_4fs*.json`` (one or more files per step)::
 
     python -m tools.reports.compositions
 
@@ -63,7 +63,7 @@ def main() -> None:
     tables = {}
     for step in STEPS:
         results = {}
-        for path in sorted(DOCS.glob(f"compositions_accuracy_{step}*.json")):
+        for path in sorted((DOCS / "data" / "compositions").glob(f"compositions_accuracy_{step}*.json")):
             results.update(json.loads(path.read_text(encoding="utf-8"))["systems"])
         for system, result in results.items():
             tables[f"{system} {step} header"] = result["header"]

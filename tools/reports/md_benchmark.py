@@ -9,7 +9,7 @@ sweep runner (``alphaprk sweep``; finished cells are skipped), then analyses eve
 directory with MDAnalysis (O–O RDF, diffusion coefficient, H velocity-autocorrelation
 spectrum; cached per run in ``md_benchmark_analysis.json``), and writes
 
-- ``docs/benchmarks.json``: every number of the page,
+- ``docs/data/benchmarks/benchmarks.json``: every number of the page,
 - ``docs/figures/benchmark_*.png``: the figures,
 - the generated tables of ``docs/benchmarks.md`` (between ``<!-- generated: NAME -->``
   and ``<!-- end generated: NAME -->``; the prose around them is written by hand).

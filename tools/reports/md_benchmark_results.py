@@ -14,7 +14,7 @@ from openmm_alphaprk.runs.integrator_names import label as integrator_label
 ROOT = Path(__file__).resolve().parents[2]
 CONFIG = ROOT / "docs" / "sweeps" / "md_benchmark.toml"
 PAGE = ROOT / "docs" / "benchmarks.md"
-JSON_OUT = ROOT / "docs" / "benchmarks.json"
+JSON_OUT = ROOT / "docs" / "data" / "benchmarks" / "benchmarks.json"
 FIGURES = ROOT / "docs" / "figures"
 
 SYSTEMS = ("tip3p-2nm", "tip3p-3nm", "villin")

@@ -1,7 +1,7 @@
 """The MD benchmark's tables: their numbers from the sweep's rows, and their Markdown.
 
 :func:`energy_table`, :func:`dynamics_table` and :func:`scan_table` gather the
-numbers of one system (what ``docs/benchmarks.json`` holds);
+numbers of one system (what ``docs/data/benchmarks/benchmarks.json`` holds);
 :func:`energy_markdown`, :func:`dynamics_markdown` and :func:`scan_markdown` render
 them as the generated blocks of ``docs/benchmarks.md``.
 """

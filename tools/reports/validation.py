@@ -19,7 +19,7 @@ It computes
    angular and linear momentum, constraints and H − E_ref against time
    (:mod:`.validation_openmm`, :mod:`.validation_reporter`).
 
-It writes ``docs/validation.json`` (all numbers), ``docs/figures/validation_*.png``
+It writes ``docs/data/validation/validation.json`` (all numbers), ``docs/figures/validation_*.png``
 (:mod:`.validation_figures`), rewrites the generated tables of ``docs/validation.md``
 (:mod:`.validation_tables`, between ``<!-- generated: NAME -->`` and
 ``<!-- end generated: NAME -->``; the prose is left alone) and prints the tables.
@@ -60,7 +60,7 @@ def dump_json(data: dict) -> str:
 
 
 def compute(quick: bool, workdir: Path) -> dict:
-    """Run every study; return the page's data (what ``docs/validation.json`` holds)."""
+    """Run every study; return the page's data (what ``docs/data/validation/validation.json`` holds)."""
     import openmm as mm
 
     mm.Platform.getPlatformByName("CPU").setPropertyDefaultValue("Threads", "1")
@@ -100,7 +100,7 @@ def build_parser() -> argparse.ArgumentParser:
     """Return the command line's parser."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true", help="small runs, to check the script")
-    parser.add_argument("--json", type=Path, help="output JSON (default docs/validation.json)")
+    parser.add_argument("--json", type=Path, help="output JSON (default docs/data/validation/validation.json)")
     parser.add_argument("--figures", type=Path, help="figure folder (default docs/figures)")
     parser.add_argument(
         "--page", type=Path, help="page whose tables are rewritten (default docs/validation.md)"
@@ -125,7 +125,7 @@ def main(argv: list[str] | None = None) -> int:
         figures = args.figures or scratch / "figures"
         page = args.page
     else:
-        json_path = args.json or DOCS / "validation.json"
+        json_path = args.json or DOCS / "data" / "validation" / "validation.json"
         figures = args.figures or DOCS / "figures"
         page = args.page or DOCS / "validation.md"
     if args.from_json:
