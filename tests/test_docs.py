@@ -10,6 +10,7 @@ from pathlib import Path
 from openmm_alphaprk import AlphaRattleIntegrator, RattleIntegrator
 from openmm_alphaprk.runs.integrator_names import parse_integrator
 from openmm_alphaprk.workflows.comparison import DEFAULT_INTEGRATORS
+from tools.reports import sources
 
 ROOT = Path(__file__).resolve().parents[1]
 #: The README and every Markdown page of the documentation (docs/ and its folders; not the built site).
@@ -42,6 +43,19 @@ def test_the_pages_include_the_documentation_folders():
 def test_the_readme_is_a_front_page():
     lines = (ROOT / "README.md").read_text(encoding="utf-8").splitlines()
     assert len(lines) <= README_MAX_LINES, f"README.md has {len(lines)} lines; move detail into docs/"
+
+
+def test_every_data_file_has_its_provenance():
+    """Each file of docs/data/ has its day, commit and machine in provenance.toml, and each entry a file."""
+    table = sources.provenance()
+    entries = {key for key in table if key != "machines"}
+    files = set(sources.data_files())
+    assert files - entries == set(), "files without provenance"
+    assert entries - files == set(), "provenance of files that are not there"
+    for path in files:
+        entry = sources.source(path)
+        assert re.fullmatch(r"\d{4}-\d\d-\d\d", entry.date) and re.fullmatch(r"[0-9a-f]{7,40}", entry.commit)
+    assert not [p.name for p in (ROOT / "docs").glob("*.json")], "data belongs under docs/data/<page>/"
 
 
 def test_no_page_refers_to_tracker_issues():
