@@ -1,10 +1,22 @@
-"""Declarative system definitions: the ``*.toml`` files next to this module.
+"""Declarative system definitions: the ``*.toml`` files next to this module, and a user's files.
 
 A definition has a ``description``, a ``[build]`` table (what to build with OpenMM's
-``ForceField`` and ``Modeller``) and an ``[equilibration]`` table (the seeded
-minimization + Langevin protocol). Keys carry their unit in their name
-(``box_edge_nm``, ``temperature_K`` …). :func:`definition_key` hashes the content,
-which keys the cache of equilibrated states.
+``ForceField`` and ``Modeller``, or which files of a user's to read) and an
+``[equilibration]`` table (the seeded minimization + Langevin protocol). Keys carry their
+unit in their name (``box_edge_nm``, ``temperature_K`` …). :func:`definition_key` hashes
+the content, which keys the cache of equilibrated states.
+
+A user's system files (AMBER, CHARMM, GROMACS, PDB/PDBx with force fields, OpenMM XML)
+make a definition of a file kind: :func:`file_definition` from a file recognised by its
+extension and :class:`FileOptions` (the command line's options), or a definition file
+that names them::
+
+    [build]
+    kind = "amber"
+    files = { system = "my.prmtop", coordinates = "my.inpcrd" }   # relative to the .toml
+    cutoff_nm = 0.9
+
+:mod:`.files` reads them with OpenMM's readers.
 """
 
 from __future__ import annotations
@@ -17,6 +29,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import openmm.app as app
+
 from .._units import InputError
 
 if sys.version_info >= (3, 11):
@@ -26,11 +40,27 @@ else:  # pragma: no cover - Python 3.10
 
 DEFINITIONS_DIR = Path(__file__).parent
 
-#: Built by the package from a force field; the kinds of a user's files are in :mod:`.files`.
+#: Built by the package from a force field; the others are the kinds of a user's files (:data:`SUFFIX_KINDS`).
 BUILT_KINDS = ("water_box", "water_cluster", "pdb")
 KINDS = (*BUILT_KINDS, "amber", "charmm", "gromacs", "pdb_files", "openmm_xml")
 NONBONDED_METHODS = ("PME", "NoCutoff")
 CONSTRAINTS = ("none", "HBonds")
+#: The kinds of a user's files, by the extension of the file that names the system.
+SUFFIX_KINDS = {
+    ".prmtop": "amber",
+    ".parm7": "amber",
+    ".psf": "charmm",
+    ".top": "gromacs",
+    ".pdb": "pdb_files",
+    ".cif": "pdb_files",
+    ".pdbx": "pdb_files",
+    ".xml": "openmm_xml",
+}
+FILE_KINDS = tuple(sorted(set(SUFFIX_KINDS.values())))
+#: Coordinate files looked for beside a topology of the same stem, in this order.
+COORDINATE_SUFFIXES = {"amber": (".inpcrd", ".rst7", ".ncrst", ".rst", ".crd"), "gromacs": (".gro",)}
+#: The ``constraints`` of a System a reader creates, as OpenMM spells them.
+CONSTRAINT_CHOICES = {"HBonds": app.HBonds, "AllBonds": app.AllBonds, "HAngles": app.HAngles, "none": None}
 
 #: Required keys of each table, with their types.
 _BUILD_KEYS: dict[str, dict[str, type | tuple[type, ...]]] = {
@@ -120,8 +150,6 @@ def load_definition(name: str) -> SystemDefinition:
     DefinitionError
         If the file is invalid.
     """
-    from .files import file_definition, is_system_file
-
     if is_system_file(name):
         return file_definition(name)
     path = Path(name)
@@ -142,7 +170,7 @@ def load_definition(name: str) -> SystemDefinition:
 def parse_definition(data: dict[str, Any], name: str, base: Path | None = None) -> SystemDefinition:
     """Validate the tables of a definition and return it.
 
-    The files of a file kind (:mod:`.files`) are made absolute from ``base`` (the
+    The files of a file kind (:func:`check_file_build`) are made absolute from ``base`` (the
     definition file's folder; default the current directory) and must exist.
     """
     for table in ("build", "equilibration"):
@@ -153,8 +181,6 @@ def parse_definition(data: dict[str, Any], name: str, base: Path | None = None) 
     if kind not in KINDS:
         raise DefinitionError(f"system {name!r}: build.kind must be one of {KINDS}, got {kind!r}.")
     if kind not in BUILT_KINDS:
-        from .files import check_file_build
-
         check_file_build(name, build, Path.cwd() if base is None else base)
         _check_keys(name, "equilibration", equilibration, _EQUILIBRATION_KEYS)
         equilibration.setdefault("zero_momentum", False)
@@ -215,3 +241,196 @@ def definition_key(definition: SystemDefinition, *extra: str) -> str:
         sort_keys=True,
     )
     return hashlib.sha256(content.encode()).hexdigest()
+
+
+# ---------------------------------------------------------------- a user's files
+@dataclass(frozen=True)
+class FileOptions:
+    """How to read a user's system files and make them ready for NVE (the command line's options).
+
+    Attributes
+    ----------
+    coordinates
+        Coordinate file (AMBER ``.inpcrd``/``.rst7``/``.ncrst``, CHARMM ``.crd``/``.pdb``,
+        GROMACS ``.gro``); default: the topology's stem with a known extension.
+    params
+        CHARMM parameter files (``.prm``, ``.rtf``, ``.str``).
+    forcefield
+        Force-field XML names for a PDB/PDBx file (e.g. ``amber14-all.xml amber14/tip3p.xml``).
+    include_dir
+        GROMACS include directory for the force-field files.
+    state, topology
+        For an OpenMM System XML: a serialized State (positions, box, velocities) and a
+        PDB topology (for trajectories and analysis; without it one is made from masses).
+    box_nm
+        Box edges (nm) where the coordinates have none (e.g. a CHARMM ``.crd``).
+    constraints
+        ``HBonds`` (default, with rigid water), ``AllBonds``, ``HAngles`` or ``none``.
+    hydrogen_mass_amu
+        Hydrogen mass repartitioning: hydrogens bonded to heavy atoms get this mass, taken
+        from the heavy atom (water's hydrogens are left alone).
+    as_is
+        Keep the System exactly as the files make it (no :func:`prepare_for_nve`).
+    temperature_K, seed
+        Velocities drawn where the files have none, and the equilibration's.
+    equilibrate_ps
+        A seeded Langevin equilibration of the prepared System first (minimized before).
+    cutoff_nm
+        Nonbonded cutoff of PME where a reader creates the System.
+    """
+
+    coordinates: str | None = None
+    params: tuple[str, ...] = ()
+    forcefield: tuple[str, ...] = ()
+    include_dir: str | None = None
+    state: str | None = None
+    topology: str | None = None
+    box_nm: tuple[float, float, float] | None = None
+    constraints: str = "HBonds"
+    hydrogen_mass_amu: float | None = None
+    as_is: bool = False
+    temperature_K: float = 300.0
+    seed: int = 2024
+    equilibrate_ps: float = 0.0
+    cutoff_nm: float = 0.9
+
+
+def is_system_file(name: str | Path) -> bool:
+    """Tell whether ``name`` names a system by a file of a known extension (not a ``.toml`` definition)."""
+    return Path(name).suffix.lower() in SUFFIX_KINDS
+
+
+def file_definition(path: str | Path, options: FileOptions | None = None) -> SystemDefinition:
+    """Return the definition of the system in ``path`` (kind by extension) read with ``options``.
+
+    Raises
+    ------
+    DefinitionError
+        For a missing file, a missing companion file (coordinates, parameters, force
+        field, state) or an option the format does not take, naming the fix.
+    """
+    options = options or FileOptions()
+    path = Path(path)
+    kind = SUFFIX_KINDS.get(path.suffix.lower())
+    if kind is None:
+        raise DefinitionError(
+            f"{path}: unknown system file extension {path.suffix!r}; give one of {sorted(SUFFIX_KINDS)} "
+            "or a .toml definition"
+        )
+    files: dict[str, Any] = {"system": str(path)}
+    if options.coordinates:
+        files["coordinates"] = options.coordinates
+    elif kind in COORDINATE_SUFFIXES:
+        found = _same_stem(path, COORDINATE_SUFFIXES[kind])
+        if found is not None:
+            files["coordinates"] = str(found)
+    if options.params:
+        files["params"] = list(options.params)
+    if options.state:
+        files["state"] = options.state
+    if options.topology:
+        files["topology"] = options.topology
+    if options.include_dir:
+        files["include_dir"] = options.include_dir
+    build: dict[str, Any] = {
+        "kind": kind,
+        "files": files,
+        "forcefield": list(options.forcefield),
+        "cutoff_nm": float(options.cutoff_nm),
+        "constraints": options.constraints,
+        "prepare_for_nve": not options.as_is,
+    }
+    if options.box_nm is not None:
+        build["box_nm"] = [float(edge) for edge in options.box_nm]
+    if options.hydrogen_mass_amu is not None:
+        build["hydrogen_mass_amu"] = float(options.hydrogen_mass_amu)
+    equilibrate = options.equilibrate_ps > 0
+    equilibration = {
+        "seed": int(options.seed),
+        "temperature_K": float(options.temperature_K),
+        "minimize_tolerance_kJ_per_mol_nm": 10.0,
+        "minimize_max_iterations": 500 if equilibrate else 0,
+        "langevin_steps": round(options.equilibrate_ps / 0.002) if equilibrate else 0,
+        "langevin_timestep_fs": 2.0,
+        "langevin_friction_per_ps": 1.0,
+        "platform": "CPU",
+    }
+    data = {"description": f"{path.name} ({kind})", "build": build, "equilibration": equilibration}
+    return parse_definition(data, path.stem)
+
+
+def check_file_build(name: str, build: dict[str, Any], base: Path | None = None) -> None:
+    """Validate a file kind's ``[build]`` table in place; relative paths become absolute from ``base``."""
+    files = build.get("files")
+    if not isinstance(files, dict) or "system" not in files:
+        raise DefinitionError(
+            f"system {name!r}: build.files must be a table with at least 'system' (a path)."
+        )
+    for key, value in list(files.items()):
+        paths = value if isinstance(value, list) else [value]
+        resolved = [str(_resolve(p, base)) for p in paths]
+        files[key] = resolved if isinstance(value, list) else resolved[0]
+        if key == "include_dir":
+            continue
+        for p in resolved:
+            if not Path(p).is_file():
+                raise DefinitionError(f"system {name!r}: {key} file {p} not found.")
+    build.setdefault("forcefield", [])
+    build.setdefault("cutoff_nm", 0.9)
+    build.setdefault("constraints", "HBonds")
+    build.setdefault("prepare_for_nve", True)
+    if build["constraints"] not in CONSTRAINT_CHOICES:
+        raise DefinitionError(
+            f"system {name!r}: constraints {build['constraints']!r}; "
+            f"choose one of {sorted(CONSTRAINT_CHOICES)}."
+        )
+    mass = build.get("hydrogen_mass_amu")
+    if mass is not None and not 1.0 <= float(mass) <= 4.0:
+        raise DefinitionError(
+            f"system {name!r}: hydrogen mass {mass} amu is outside 1–4 amu (3 or 4 is usual for a 4 fs step)."
+        )
+    box = build.get("box_nm")
+    if box is not None and (len(box) != 3 or not all(float(edge) > 0 for edge in box)):
+        raise DefinitionError(f"system {name!r}: box_nm must be three positive edges in nm, got {box!r}.")
+    kind = build["kind"]
+    needs = {
+        "charmm": (
+            "coordinates",
+            "params",
+            "--coordinates FILE.crd and --params FILE.prm FILE.rtf (or .str)",
+        ),
+        "amber": ("coordinates", None, "--coordinates FILE.inpcrd (or a .inpcrd/.rst7 of the same stem)"),
+        "gromacs": ("coordinates", None, "--coordinates FILE.gro (or a .gro of the same stem)"),
+        "openmm_xml": ("state", None, "--state STATE.xml (a serialized openmm.State)"),
+    }
+    if kind in needs:
+        first, second, how = needs[kind]
+        missing = [key for key in (first, second) if key is not None and key not in files]
+        if missing:
+            raise DefinitionError(
+                f"system {name!r}: no {' or '.join(missing)} file for {Path(files['system']).name}; "
+                f"give {how}."
+            )
+    if kind == "pdb_files" and not build["forcefield"]:
+        raise DefinitionError(
+            f"system {name!r}: a PDB/PDBx file needs force-field XMLs; give --forcefield, e.g. "
+            "--forcefield amber14-all.xml amber14/tip3p.xml"
+        )
+    if kind == "openmm_xml" and build["constraints"] != "HBonds":
+        raise DefinitionError(
+            f"system {name!r}: a serialized System keeps its own constraints; --constraints applies to "
+            "files a reader turns into a System (prmtop, psf, top, pdb)."
+        )
+
+
+def _same_stem(path: Path, suffixes: tuple[str, ...]) -> Path | None:
+    for suffix in suffixes:
+        candidate = path.with_suffix(suffix)
+        if candidate.is_file():
+            return candidate
+    return None
+
+
+def _resolve(path: str, base: Path | None) -> Path:
+    p = Path(path).expanduser()
+    return p if p.is_absolute() or base is None else (base / p)

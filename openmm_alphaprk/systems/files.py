@@ -1,21 +1,19 @@
-"""A user's own system files: AMBER, CHARMM, GROMACS, PDB/PDBx with force fields, OpenMM XML.
+"""Reading a user's own system files: AMBER, CHARMM, GROMACS, PDB/PDBx with force fields, OpenMM XML.
 
-:func:`file_definition` turns a file (recognised by its extension) and
-:class:`FileOptions` into a :class:`~.definitions.SystemDefinition` of a file kind, so
-that :func:`~.cache.prepare_system` prepares it like the named systems: the same
-:class:`~.cache.PreparedSystem`, cached under a key of the definition *and the files'
-content*. :func:`load_files` reads the files with OpenMM's own readers
-(``AmberPrmtopFile``, ``CharmmPsfFile`` with ``CharmmParameterSet``, ``GromacsTopFile``,
-``PDBFile``/``PDBxFile`` with ``ForceField``, ``XmlSerializer``) and, unless the
-definition says ``prepare_for_nve = false``, makes the System ready for NVE with
-:func:`~openmm_alphaprk.nve.prepare_for_nve`, recording each change.
+What the files are and how to read them is a definition of a file kind
+(:func:`~.definitions.file_definition` from a file recognised by its extension and
+:class:`~.definitions.FileOptions`, or a ``*.toml`` definition, see
+:mod:`.definitions`), which :func:`~.cache.prepare_system` prepares like the named
+systems: the same :class:`~.cache.PreparedSystem`, cached under a key of the definition
+*and the files' content* (:func:`file_digests`). :func:`load_files` reads the files with
+OpenMM's own readers (``AmberPrmtopFile``, ``CharmmPsfFile`` with ``CharmmParameterSet``,
+``GromacsTopFile``, ``PDBFile``/``PDBxFile`` with ``ForceField``, ``XmlSerializer``) and,
+unless the definition says ``prepare_for_nve = false``, makes the System ready for NVE
+with :func:`~openmm_alphaprk.nve.prepare_for_nve`, recording each change. A file a
+reader rejects is refused naming the file and the format it must be in.
 
-A definition file (``*.toml``) may name the same kinds::
-
-    [build]
-    kind = "amber"
-    files = { prmtop = "my.prmtop", coordinates = "my.inpcrd" }   # relative to the .toml
-    cutoff_nm = 0.9
+The definition side is re-exported here (``from openmm_alphaprk.systems.files import
+FileOptions, file_definition``), where the user's files are.
 """
 
 from __future__ import annotations
@@ -30,204 +28,31 @@ import openmm as mm
 import openmm.app as app
 import openmm.unit as unit
 
-from .definitions import DefinitionError, SystemDefinition, parse_definition
+from ..nve import prepare_for_nve
+from .definitions import (
+    CONSTRAINT_CHOICES,
+    FILE_KINDS,
+    DefinitionError,
+    FileOptions,
+    SystemDefinition,
+    file_definition,
+    is_system_file,
+)
 
-#: The file kinds, by the extension of the file that names the system.
-SUFFIX_KINDS = {
-    ".prmtop": "amber",
-    ".parm7": "amber",
-    ".psf": "charmm",
-    ".top": "gromacs",
-    ".pdb": "pdb_files",
-    ".cif": "pdb_files",
-    ".pdbx": "pdb_files",
-    ".xml": "openmm_xml",
-}
-FILE_KINDS = tuple(sorted(set(SUFFIX_KINDS.values())))
-#: Coordinate files looked for beside a topology of the same stem, in this order.
-COORDINATE_SUFFIXES = {"amber": (".inpcrd", ".rst7", ".ncrst", ".rst", ".crd"), "gromacs": (".gro",)}
-CONSTRAINT_CHOICES = {"HBonds": app.HBonds, "AllBonds": app.AllBonds, "HAngles": app.HAngles, "none": None}
+__all__ = [
+    "CONSTRAINT_CHOICES",
+    "HYDROGEN_MASS_LIMIT",
+    "FileOptions",
+    "LoadedFiles",
+    "file_definition",
+    "file_digests",
+    "is_system_file",
+    "load_files",
+    "repartition_hydrogen_mass",
+]
+
 #: Below this mass (amu) a particle bonded to one other is a hydrogen (repartitioned ones included).
 HYDROGEN_MASS_LIMIT = 4.5
-
-
-@dataclass(frozen=True)
-class FileOptions:
-    """How to read a user's system files and make them ready for NVE (the command line's options).
-
-    Attributes
-    ----------
-    coordinates
-        Coordinate file (AMBER ``.inpcrd``/``.rst7``/``.ncrst``, CHARMM ``.crd``/``.pdb``,
-        GROMACS ``.gro``); default: the topology's stem with a known extension.
-    params
-        CHARMM parameter files (``.prm``, ``.rtf``, ``.str``).
-    forcefield
-        Force-field XML names for a PDB/PDBx file (e.g. ``amber14-all.xml amber14/tip3p.xml``).
-    include_dir
-        GROMACS include directory for the force-field files.
-    state, topology
-        For an OpenMM System XML: a serialized State (positions, box, velocities) and a
-        PDB topology (for trajectories and analysis; without it one is made from masses).
-    box_nm
-        Box edges (nm) where the coordinates have none (e.g. a CHARMM ``.crd``).
-    constraints
-        ``HBonds`` (default, with rigid water), ``AllBonds``, ``HAngles`` or ``none``.
-    hydrogen_mass_amu
-        Hydrogen mass repartitioning: hydrogens bonded to heavy atoms get this mass, taken
-        from the heavy atom (water's hydrogens are left alone).
-    as_is
-        Keep the System exactly as the files make it (no :func:`prepare_for_nve`).
-    temperature_K, seed
-        Velocities drawn where the files have none, and the equilibration's.
-    equilibrate_ps
-        A seeded Langevin equilibration of the prepared System first (minimized before).
-    cutoff_nm
-        Nonbonded cutoff of PME where a reader creates the System.
-    """
-
-    coordinates: str | None = None
-    params: tuple[str, ...] = ()
-    forcefield: tuple[str, ...] = ()
-    include_dir: str | None = None
-    state: str | None = None
-    topology: str | None = None
-    box_nm: tuple[float, float, float] | None = None
-    constraints: str = "HBonds"
-    hydrogen_mass_amu: float | None = None
-    as_is: bool = False
-    temperature_K: float = 300.0
-    seed: int = 2024
-    equilibrate_ps: float = 0.0
-    cutoff_nm: float = 0.9
-
-
-def is_system_file(name: str | Path) -> bool:
-    """Tell whether ``name`` names a system by a file of a known extension (not a ``.toml`` definition)."""
-    return Path(name).suffix.lower() in SUFFIX_KINDS
-
-
-def file_definition(path: str | Path, options: FileOptions | None = None) -> SystemDefinition:
-    """Return the definition of the system in ``path`` (kind by extension) read with ``options``.
-
-    Raises
-    ------
-    DefinitionError
-        For a missing file, a missing companion file (coordinates, parameters, force
-        field, state) or an option the format does not take, naming the fix.
-    """
-    options = options or FileOptions()
-    path = Path(path)
-    kind = SUFFIX_KINDS.get(path.suffix.lower())
-    if kind is None:
-        raise DefinitionError(
-            f"{path}: unknown system file extension {path.suffix!r}; give one of {sorted(SUFFIX_KINDS)} "
-            "or a .toml definition"
-        )
-    files: dict[str, Any] = {"system": str(path)}
-    if options.coordinates:
-        files["coordinates"] = options.coordinates
-    elif kind in COORDINATE_SUFFIXES:
-        found = _same_stem(path, COORDINATE_SUFFIXES[kind])
-        if found is not None:
-            files["coordinates"] = str(found)
-    if options.params:
-        files["params"] = list(options.params)
-    if options.state:
-        files["state"] = options.state
-    if options.topology:
-        files["topology"] = options.topology
-    if options.include_dir:
-        files["include_dir"] = options.include_dir
-    build: dict[str, Any] = {
-        "kind": kind,
-        "files": files,
-        "forcefield": list(options.forcefield),
-        "cutoff_nm": float(options.cutoff_nm),
-        "constraints": options.constraints,
-        "prepare_for_nve": not options.as_is,
-    }
-    if options.box_nm is not None:
-        build["box_nm"] = [float(edge) for edge in options.box_nm]
-    if options.hydrogen_mass_amu is not None:
-        build["hydrogen_mass_amu"] = float(options.hydrogen_mass_amu)
-    equilibrate = options.equilibrate_ps > 0
-    equilibration = {
-        "seed": int(options.seed),
-        "temperature_K": float(options.temperature_K),
-        "minimize_tolerance_kJ_per_mol_nm": 10.0,
-        "minimize_max_iterations": 500 if equilibrate else 0,
-        "langevin_steps": round(options.equilibrate_ps / 0.002) if equilibrate else 0,
-        "langevin_timestep_fs": 2.0,
-        "langevin_friction_per_ps": 1.0,
-        "platform": "CPU",
-    }
-    data = {"description": f"{path.name} ({kind})", "build": build, "equilibration": equilibration}
-    return parse_definition(data, path.stem)
-
-
-def check_file_build(name: str, build: dict[str, Any], base: Path | None = None) -> None:
-    """Validate a file kind's ``[build]`` table in place; relative paths become absolute from ``base``."""
-    files = build.get("files")
-    if not isinstance(files, dict) or "system" not in files:
-        raise DefinitionError(
-            f"system {name!r}: build.files must be a table with at least 'system' (a path)."
-        )
-    for key, value in list(files.items()):
-        paths = value if isinstance(value, list) else [value]
-        resolved = [str(_resolve(p, base)) for p in paths]
-        files[key] = resolved if isinstance(value, list) else resolved[0]
-        if key == "include_dir":
-            continue
-        for p in resolved:
-            if not Path(p).is_file():
-                raise DefinitionError(f"system {name!r}: {key} file {p} not found.")
-    build.setdefault("forcefield", [])
-    build.setdefault("cutoff_nm", 0.9)
-    build.setdefault("constraints", "HBonds")
-    build.setdefault("prepare_for_nve", True)
-    if build["constraints"] not in CONSTRAINT_CHOICES:
-        raise DefinitionError(
-            f"system {name!r}: constraints {build['constraints']!r}; "
-            f"choose one of {sorted(CONSTRAINT_CHOICES)}."
-        )
-    mass = build.get("hydrogen_mass_amu")
-    if mass is not None and not 1.0 <= float(mass) <= 4.0:
-        raise DefinitionError(
-            f"system {name!r}: hydrogen mass {mass} amu is outside 1–4 amu (3 or 4 is usual for a 4 fs step)."
-        )
-    box = build.get("box_nm")
-    if box is not None and (len(box) != 3 or not all(float(edge) > 0 for edge in box)):
-        raise DefinitionError(f"system {name!r}: box_nm must be three positive edges in nm, got {box!r}.")
-    kind = build["kind"]
-    needs = {
-        "charmm": (
-            "coordinates",
-            "params",
-            "--coordinates FILE.crd and --params FILE.prm FILE.rtf (or .str)",
-        ),
-        "amber": ("coordinates", None, "--coordinates FILE.inpcrd (or a .inpcrd/.rst7 of the same stem)"),
-        "gromacs": ("coordinates", None, "--coordinates FILE.gro (or a .gro of the same stem)"),
-        "openmm_xml": ("state", None, "--state STATE.xml (a serialized openmm.State)"),
-    }
-    if kind in needs:
-        first, second, how = needs[kind]
-        missing = [key for key in (first, second) if key is not None and key not in files]
-        if missing:
-            raise DefinitionError(
-                f"system {name!r}: no {' or '.join(missing)} file for {Path(files['system']).name}; "
-                f"give {how}."
-            )
-    if kind == "pdb_files" and not build["forcefield"]:
-        raise DefinitionError(
-            f"system {name!r}: a PDB/PDBx file needs force-field XMLs; give --forcefield, e.g. "
-            "--forcefield amber14-all.xml amber14/tip3p.xml"
-        )
-    if kind == "openmm_xml" and build["constraints"] != "HBonds":
-        raise DefinitionError(
-            f"system {name!r}: a serialized System keeps its own constraints; --constraints applies to "
-            "files a reader turns into a System (prmtop, psf, top, pdb)."
-        )
 
 
 def file_digests(definition: SystemDefinition) -> list[str]:
@@ -294,8 +119,6 @@ def load_files(definition: SystemDefinition) -> LoadedFiles:
             f"{float(mass):g} amu, taken from their heavy atoms"
         )
     if build["prepare_for_nve"]:
-        from ..nve import prepare_for_nve
-
         changes += prepare_for_nve(system)
     return LoadedFiles(topology, system, np.asarray(positions, dtype=float), velocities, changes)
 
@@ -495,19 +318,6 @@ def _bonds(system: mm.System, topology: app.Topology | None) -> list[tuple[int, 
     # a rigid water's H–H constraint is not a bond: keep pairs that include a heavy particle
     masses = [system.getParticleMass(i).value_in_unit(unit.dalton) for i in range(system.getNumParticles())]
     return [(i, j) for i, j in pairs if max(masses[i], masses[j]) >= HYDROGEN_MASS_LIMIT]
-
-
-def _same_stem(path: Path, suffixes: tuple[str, ...]) -> Path | None:
-    for suffix in suffixes:
-        candidate = path.with_suffix(suffix)
-        if candidate.is_file():
-            return candidate
-    return None
-
-
-def _resolve(path: str, base: Path | None) -> Path:
-    p = Path(path).expanduser()
-    return p if p.is_absolute() or base is None else (base / p)
 
 
 def _nm(positions) -> np.ndarray:
