@@ -1,7 +1,8 @@
 """Where α goes on a composition: the energy mode and a fixed α with α on each stage, from one start.
 
 For each placement: RMS(H − E_ref), force evaluations per step, the median |α*| (energy
-mode) and the RMS position error per atom against RATTLE at h/64 after 5 / 20 / 50 steps.
+mode) and the RMS position error per atom against RATTLE at h/64 after 5 / 20 / 50 steps
+(``--horizons``).
 Prints a table; ``--json`` also writes it. Used for docs/compositions.md.
 
     python tools/scripts/alpha_placement.py --system tip3p-2nm --timestep 2
@@ -15,24 +16,25 @@ from functools import partial
 
 import openmm.unit as unit
 
-from openmm_alphaprk import AlphaRattleIntegrator
+from openmm_alphaprk import AlphaRattleEnergyIntegrator, AlphaRattleIntegrator
 from openmm_alphaprk.observables import rms
 from openmm_alphaprk.runs.accuracy import horizon_errors, periodic_box, reference, run_trajectory
 from openmm_alphaprk.runs.integrator_names import SubStepped
 from openmm_alphaprk.systems import prepare_system
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--system", default="tip3p-2nm")
     parser.add_argument("--timestep", type=float, default=2.0, help="fs")
     parser.add_argument("--composition", default="suzuki5")
     parser.add_argument("--fixed-alpha", type=float, default=0.02)
+    parser.add_argument("--horizons", type=int, nargs="+", default=[5, 20, 50], help="steps of h")
     parser.add_argument("--json")
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     prepared = prepare_system(args.system)
     h = args.timestep / 1000.0
-    horizons = (5, 20, 50)
+    horizons = sorted(args.horizons)
     box = periodic_box(prepared)
     ref = run_trajectory(prepared, reference(h), horizons, read_energy=False)
     from openmm_alphaprk.integrators.compositions import composition
@@ -44,14 +46,11 @@ def main() -> None:
         for stages in placements if alpha != 0.0 else ["middle"]:
             if alpha == "energy" and stages == "all":
                 continue
-            make = partial(
-                AlphaRattleIntegrator,
-                h * unit.picoseconds,
-                alpha,
-                composition=chosen,
-                alpha_stages=stages,
-                max_midpoint_iterations=100,
-            )
+            settings = {"composition": chosen, "alpha_stages": stages, "max_midpoint_iterations": 100}
+            if alpha == "energy":
+                make = partial(AlphaRattleEnergyIntegrator, h * unit.picoseconds, **settings)
+            else:
+                make = partial(AlphaRattleIntegrator, h * unit.picoseconds, alpha, **settings)
             run = run_trajectory(prepared, SubStepped(make), horizons)
             errors = horizon_errors(run, ref, box, args.timestep)
             integrator = run.integrator
@@ -76,7 +75,11 @@ def main() -> None:
             )
     if args.json:
         with open(args.json, "w") as handle:
-            json.dump({"system": args.system, "timestep_fs": args.timestep, "rows": rows}, handle, indent=1)
+            json.dump(
+                {"system": args.system, "timestep_fs": args.timestep, "horizons": horizons, "rows": rows},
+                handle,
+                indent=1,
+            )
 
 
 if __name__ == "__main__":

@@ -1,7 +1,7 @@
 """Every named composition at α = 0 and in the energy mode (α on its middle stage), from one start.
 
 For each: force evaluations per step, RMS(H − E_ref) over 200 steps and the RMS position
-error per atom against RATTLE at h/64 after 5 / 20 / 50 / 200 steps; RATTLE at h/k beside
+error per atom against RATTLE at h/64 after 5 / 20 / 50 / 200 steps (``--horizons``); RATTLE at h/k beside
 them. Prints a table; ``--json`` also writes it. Used for docs/compositions.md.
 
     python tools/scripts/compositions_survey.py --system tip3p-2nm --timestep 2
@@ -16,7 +16,7 @@ from functools import partial
 
 import openmm.unit as unit
 
-from openmm_alphaprk import AlphaRattleIntegrator
+from openmm_alphaprk import AlphaRattleEnergyIntegrator, AlphaRattleIntegrator
 from openmm_alphaprk.integrators.compositions import COMPOSITIONS
 from openmm_alphaprk.observables import rms
 from openmm_alphaprk.runs.accuracy import horizon_errors, periodic_box, reference, run_trajectory
@@ -26,20 +26,22 @@ from openmm_alphaprk.systems import prepare_system
 HORIZONS = (5, 20, 50, 200)
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--system", default="tip3p-2nm")
     parser.add_argument("--timestep", type=float, default=2.0, help="fs")
+    parser.add_argument("--horizons", type=int, nargs="+", default=list(HORIZONS), help="steps of h")
     parser.add_argument("--json")
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
+    horizons = sorted(args.horizons)
     prepared = prepare_system(args.system)
     h = args.timestep / 1000.0
     box = periodic_box(prepared)
-    ref = run_trajectory(prepared, reference(h), HORIZONS, read_energy=False)
+    ref = run_trajectory(prepared, reference(h), horizons, read_energy=False)
     rows = []
 
     def record(label: str, row: SubStepped) -> float:
-        run = run_trajectory(prepared, row, HORIZONS)
+        run = run_trajectory(prepared, row, horizons)
         errors = horizon_errors(run, ref, box, args.timestep)
         entry = {
             "row": label,
@@ -60,7 +62,10 @@ def main() -> None:
     divisors = set()
     for chosen in COMPOSITIONS.values():
         for alpha in (0.0, "energy"):
-            make = partial(AlphaRattleIntegrator, h * unit.picoseconds, alpha, composition=chosen)
+            if alpha == "energy":
+                make = partial(AlphaRattleEnergyIntegrator, h * unit.picoseconds, composition=chosen)
+            else:
+                make = partial(AlphaRattleIntegrator, h * unit.picoseconds, alpha, composition=chosen)
             evaluations = record(
                 f"{chosen.name} {'α = 0' if alpha == 0.0 else 'energy mode'}", SubStepped(make)
             )
@@ -70,7 +75,11 @@ def main() -> None:
         record(f"RATTLE h/{k}", at_divisor("rattle", h, k))
     if args.json:
         with open(args.json, "w") as handle:
-            json.dump({"system": args.system, "timestep_fs": args.timestep, "rows": rows}, handle, indent=1)
+            json.dump(
+                {"system": args.system, "timestep_fs": args.timestep, "horizons": horizons, "rows": rows},
+                handle,
+                indent=1,
+            )
 
 
 if __name__ == "__main__":

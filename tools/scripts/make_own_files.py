@@ -15,14 +15,16 @@ give near-identical files (Reference/CPU platform results may still differ in la
 """
 
 import os
+import sys
 
 import numpy as np
 import openmm
-import parmed
 from openmm import app, unit
 from openmm.unit import angstrom, femtosecond, kelvin, nanometer, picosecond
 
 OUT = os.path.join(os.path.dirname(__file__), "..", "..", "tests", "data", "files")
+#: ParmEd, imported by main(): the geometry and the OpenMM set-up work (and are tested) without it.
+parmed = None
 
 
 def P(name):  # noqa: N802 - the output path of a file
@@ -198,7 +200,14 @@ def relaxed(modeller, system, minimize_iterations: int, steps: int) -> app.Simul
     return simulation
 
 
-def main():
+def main(argv: list[str] | None = None) -> None:
+    global OUT, parmed  # the output folder of P() and the ParmEd module, set once
+    import parmed
+
+    args = sys.argv[1:] if argv is None else argv
+    if args:
+        OUT = args[0]
+        os.makedirs(OUT, exist_ok=True)
     # some hosts have a broken OpenCL driver; addHydrogens/addSolvent use the default platform
     os.environ.setdefault("OPENMM_DEFAULT_PLATFORM", "CPU")
     ff = app.ForceField("amber14-all.xml", "amber14/tip3p.xml")

@@ -79,7 +79,7 @@ def _report_time(simulation: app.Simulation, repeats: int) -> float:
     return statistics.median(times) * 1e6
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
@@ -90,7 +90,7 @@ def main() -> None:
     parser.add_argument("--energy4-steps", type=int, default=20, help="steps of energy4 per round and row")
     parser.add_argument("--rattle-steps", type=int, default=100, help="steps of RATTLE per round and row")
     parser.add_argument("--repeats", type=int, default=2000, help="reports timed by themselves")
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     prepared = prepare_system(args.system, progress=False)
     platform = mm.Platform.getPlatformByName(args.platform)
     properties = {"Threads": args.threads} if args.threads else {}

@@ -102,18 +102,19 @@ def time_variants(box, platform: str, precision: str, steps: int, rounds: int) -
     return {variant: statistics.median(values) for variant, values in times.items()}
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--platform", default="CUDA")
     parser.add_argument("--precision", default="mixed")
     parser.add_argument("--box", type=float, nargs="+", default=[3.0, 6.0, 9.0])
     parser.add_argument("--steps", type=int, default=300)
     parser.add_argument("--rounds", type=int, default=5)
+    parser.add_argument("--equilibration-steps", type=int, default=200)
     parser.add_argument("--json")
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     results = {}
     for edge in args.box:
-        box = build_water_box(edge, equilibration_steps=200, platform=args.platform)
+        box = build_water_box(edge, equilibration_steps=args.equilibration_steps, platform=args.platform)
         medians = time_variants(box, args.platform, args.precision, args.steps, args.rounds)
         rattle = medians["rattle"]
         print(f"{edge} nm box, {box.n_atoms} atoms, {args.platform} {args.precision}:")

@@ -1,0 +1,214 @@
+"""The scripts of tools/scripts, run on tiny inputs: each still runs against the package as it is.
+
+The scripts measure numbers that pages of docs/ quote (each names its page). Their full runs
+take minutes to hours or a GPU; here each runs once on the smallest input it accepts, so a
+change of the package that breaks a script fails a test instead of the next measurement.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import os
+import stat
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+SCRIPTS = ROOT / "tools" / "scripts"
+
+
+def _run(script: str, *args: str, timeout: float = 120) -> str:
+    """Run ``python tools/scripts/SCRIPT ARGS`` from the repository root; return its output."""
+    result = subprocess.run(
+        [sys.executable, str(SCRIPTS / script), *args],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        env={**os.environ, "OPENMM_CPU_THREADS": "1"},
+    )
+    assert result.returncode == 0, result.stdout[-2000:] + result.stderr[-4000:]
+    return result.stdout
+
+
+def test_alpha_placement_runs(tmp_path):
+    out = tmp_path / "placement.json"
+    text = _run("alpha_placement.py", "--system", "water-cluster", "--horizons", "1", "2", "--json", str(out))
+    data = json.loads(out.read_text(encoding="utf-8"))
+    assert data["horizons"] == [1, 2] and "stages" in text
+    # suzuki5: the energy mode on stages 1, 2, 3; α = 0 once; the fixed α on 1, 2, 3 and all
+    assert [row["alpha"] for row in data["rows"]] == ["energy"] * 3 + [0.0] + [0.02] * 4
+    assert all(len(row["position_rms"]) == 2 for row in data["rows"])
+
+
+def test_compositions_survey_runs(tmp_path):
+    out = tmp_path / "survey.json"
+    _run("compositions_survey.py", "--system", "water-cluster", "--horizons", "1", "--json", str(out))
+    rows = json.loads(out.read_text(encoding="utf-8"))["rows"]
+    assert any(row["row"].startswith("RATTLE h/") for row in rows)
+    assert sum(row["row"].endswith("energy mode") for row in rows) == sum(
+        row["row"].endswith("α = 0") for row in rows
+    )
+
+
+def test_energy_noise_runs(tmp_path):
+    out = tmp_path / "noise.json"
+    _run("energy_noise.py", "--boxes", "1.5", "--platforms", "CPU", "--json", str(out))
+    (result,) = json.loads(out.read_text(encoding="utf-8"))
+    assert result["reference"] == "Reference" and 0 < result["std"]["CPU"] < 0.1
+
+
+def test_pme_tolerance_runs_and_prints_its_table_again(tmp_path):
+    out = tmp_path / "pme.json"
+    args = ["--system", "tip3p-2nm", "--steps", "3", "--tolerances", "1e-4", "--timing-steps", "2"]
+    _run("pme_tolerance.py", *args, "--timing-rounds", "1", "--json", str(out))
+    assert json.loads(out.read_text(encoding="utf-8"))
+    assert "1e-04" in _run("pme_tolerance.py", "--table", str(out)).replace("0.0001", "1e-04")
+
+
+def test_reporter_cost_runs():
+    text = _run(
+        "reporter_cost.py",
+        "--system",
+        "water-cluster",
+        "--rounds",
+        "1",
+        "--energy4-steps",
+        "2",
+        "--rattle-steps",
+        "2",
+        "--repeats",
+        "3",
+    )
+    assert "| energy4 |" in text and "| rattle |" in text
+
+
+def test_rescale_sync_cost_runs(tmp_path):
+    out = tmp_path / "sync.json"
+    args = [
+        "--platform",
+        "CPU",
+        "--box",
+        "1.9",
+        "--steps",
+        "2",
+        "--rounds",
+        "1",
+        "--equilibration-steps",
+        "2",
+    ]
+    _run("rescale_sync_cost.py", *args, "--json", str(out))
+    (medians,) = json.loads(out.read_text(encoding="utf-8")).values()
+    assert set(medians) == {"verlet", "rattle", "energy", "K", "K+moved", "K+P", "K+P+moved"}
+
+
+def test_make_own_files_builds_its_peptide_without_parmed():
+    """The peptide of the generator of tests/data/files/ takes amber14's hydrogens (no ParmEd needed)."""
+    import openmm
+    import openmm.app as app
+
+    spec = importlib.util.spec_from_file_location("make_own_files", SCRIPTS / "make_own_files.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    topology, positions = module.heavy_topology()
+    assert [r.name for r in topology.residues()] == ["ACE", "ALA", "ALA", "ALA", "NME"]
+    modeller = app.Modeller(topology, positions)
+    modeller.addHydrogens(
+        app.ForceField("amber14-all.xml"), platform=openmm.Platform.getPlatformByName("CPU")
+    )
+    assert modeller.topology.getNumAtoms() == 42  # the 42 peptide atoms of tests/data/files/README.md
+
+
+def test_make_own_files_runs_where_parmed_is(tmp_path):
+    pytest.importorskip("parmed")
+    _run("make_own_files.py", str(tmp_path), timeout=600)
+    assert {"peptide.prmtop", "peptide.psf", "peptide.top", "tip4pew_state.xml"} <= {
+        path.name for path in tmp_path.iterdir()
+    }
+
+
+#: A stand-in for python3 in cuda_check.sh: benchmark commands are parsed by the package's own
+#: command lines (and their JSON written), pytest runs are recorded, anything else runs.
+_STAND_IN = r"""
+import json, os, sys
+log = os.environ["STAND_IN_LOG"]
+args = sys.argv[1:]
+def record(entry):
+    with open(log, "a", encoding="utf-8") as handle:
+        handle.write(json.dumps(entry) + "\n")
+if args[:2] == ["-m", "pytest"]:
+    record({"pytest": args[2:], "platforms": os.environ.get("ALPHAPRK_TEST_PLATFORMS")})
+elif args[0] == "-c" and "openmm_alphaprk.benchmarks." in args[1]:
+    name, rest = args[2], args[3:]
+    if name == "energy":
+        from openmm_alphaprk.benchmarks.energy import _parser
+        parsed = vars(_parser().parse_args(rest))
+    else:
+        import openmm_alphaprk.benchmarks.cost as cost
+        parsed = {}
+        def stop(*a, **k):
+            raise SystemExit(0)
+        cost.build_water_box = stop
+        try:
+            cost.main(rest)
+        except SystemExit as done:
+            if done.code:
+                raise
+        parsed = {"json": rest[rest.index("--json") + 1]}
+    record({"bench": name, "args": rest})
+    with open(parsed["json"], "w", encoding="utf-8") as handle:
+        handle.write("{}")
+else:
+    exec(compile(args[1], "-c", "exec")) if args[0] == "-c" else sys.exit(f"unexpected {args}")
+"""
+
+
+def test_cuda_check_runs_its_commands_with_arguments_the_package_accepts(tmp_path):
+    """cuda_check.sh with stand-ins for nvidia-smi and python3: the CLI takes every command it gives."""
+    bin_dir, out, log = tmp_path / "bin", tmp_path / "out", tmp_path / "calls.jsonl"
+    bin_dir.mkdir()
+    (tmp_path / "stand_in.py").write_text(_STAND_IN, encoding="utf-8")
+    stand_ins = {
+        "nvidia-smi": "#!/bin/sh\necho 'stand-in GPU, 0.0'\n",
+        "python3": f'#!/bin/sh\nexec "{sys.executable}" "{tmp_path / "stand_in.py"}" "$@"\n',
+    }
+    for name, text in stand_ins.items():
+        (bin_dir / name).write_text(text, encoding="utf-8")
+        (bin_dir / name).chmod(stat.S_IRWXU)
+    env = {**os.environ, "PATH": f"{bin_dir}:{os.environ['PATH']}", "OUT": str(out), "STAND_IN_LOG": str(log)}
+    result = subprocess.run(
+        ["bash", str(SCRIPTS / "cuda_check.sh")],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
+    calls = [json.loads(line) for line in log.read_text(encoding="utf-8").splitlines()]
+    assert [c.get("bench") for c in calls if "bench" in c] == [
+        "energy",
+        "energy",
+        "cost",
+        "cost",
+        "cost",
+        "cost",
+    ]
+    (tests,) = [c for c in calls if "pytest" in c]
+    assert tests["platforms"] == "CUDA:mixed,CUDA:single"
+    assert all((ROOT / arg).is_file() for arg in tests["pytest"] if arg.startswith("tests/"))
+    assert {p.name for p in out.iterdir()} == {
+        "log.txt",
+        "cuda_tests.log",
+        "energy_tip3p-3nm.json",
+        "energy_villin.json",
+        "cost_3.json",
+        "cost_6.json",
+        "cost_9.json",
+        "cost_6_single.json",
+    }
+    assert "done in" in (out / "log.txt").read_text(encoding="utf-8")
