@@ -58,13 +58,56 @@ def test_every_data_file_has_its_provenance():
     assert not [p.name for p in (ROOT / "docs").glob("*.json")], "data belongs under docs/data/<page>/"
 
 
+#: A tracker reference: "issue 4", "issue-4", "Issue #4", "issues 3", "#4".
+TRACKER = re.compile(r"\b[Ii]ssues?[\s-]*#?\d+|(?<![\w&])#\d+\b")
+#: How the work was organised rather than what the software does: the tracker's issues ("the issue
+#: that asked", "this issue", "the next issue"), sessions, teams, tickets, and a design document
+#: that is not in the repository (or its sections, "§4").
+ORGANISATION = re.compile(
+    r"\b(?:[Tt]h(?:e|is|at) (?:next |same |previous |first )?issue\b(?!s? (?:a|one|its) \w+Warning)"
+    r"|[Tt]his session|[Tt]he session|[Tt]he team\b|\bfiled\b|\btickets?\b|[Dd]esign doc(?:ument)?s?\b)"
+    r"|§\s?\d"
+)
+
+
+def test_the_tracker_pattern_catches_every_spelling():
+    for text in ("issue-4", "issue 4", "Issue #4", "issues 3 and 4", "see #4"):
+        assert TRACKER.search(text), text
+    for text in ("it issues a warning", "C# 4", "&#8212;"):
+        assert not TRACKER.search(text), text
+
+
 def test_no_page_refers_to_tracker_issues():
     """Pages give dates, not tracker numbers, which a reader of the documentation cannot look up."""
-    tracker = re.compile(r"\b[Ii]ssues? #?\d+|(?<![\w&])#\d+\b")
     for page in PAGES:
         text = page.read_text(encoding="utf-8")
-        found = tracker.findall(text)
+        found = TRACKER.findall(text)
         assert not found, f"{page.relative_to(ROOT)} names tracker issues: {found}"
+
+
+def test_the_organisation_pattern_catches_what_it_is_for():
+    caught = (
+        "The tables of the issue that asked for this benchmark",
+        "reported for the next issue",
+        "the session that closed this issue",
+        "as the design doc warned",
+        "the design document's measurement",
+        "(§4)",
+        "a ticket was filed",
+    )
+    for text in caught:
+        assert ORGANISATION.search(text), text
+    for text in ("it issues one NonSmoothForcesWarning", "the energy is held", "in this section"):
+        assert not ORGANISATION.search(text), text
+
+
+def test_no_page_tells_how_the_work_was_organised():
+    """Pages, research record included, say what the software does and what was measured; not who
+    asked for it, in which issue or session, or what a document outside the repository says."""
+    for page in PAGES:
+        text = " ".join(page.read_text(encoding="utf-8").split())
+        found = [m.group(0) for m in ORGANISATION.finditer(text)]
+        assert not found, f"{page.relative_to(ROOT)} tells how the work was organised: {found}"
 
 
 def test_the_default_comparison_uses_the_recommended_energy_mode():
