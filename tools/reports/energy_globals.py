@@ -128,8 +128,8 @@ MEANINGS = {
         "alpha_typical": "ᾱ = −Σλ D0 S / Σλ S², the fixed α that would have held the energy best over "
         "past steps; the first trial's Newton step starts from it.",
         "slope_authority": "S_typ = (Σ(1−λ)λ S²)^½, the typical slope of past steps (kJ/mol per unit α).",
-        "probe_size": "The step's probe, the smallest first move of α: `alpha_probe`, after the warm-up "
-        "min(`alpha_probe`, `trust`, 2 · tolerance/S_typ).",
+        "probe_size": "The step's probe, the smallest first move of α: min(`alpha_probe`, `trust`), after "
+        "the warm-up also at most 2 · tolerance/S_typ.",
         "first_alpha": "α of the step's first trial.",
         "first_residual": "H − E_ref after the step's first trial (kJ/mol): D0 = r₁ − r_start − α₁ S.",
         "predictor_steps": "Steps that fed the predictor (with a measured or predicted slope) since E_ref "
@@ -219,7 +219,7 @@ MEANINGS = {
         "last_move": "Order 4: the last step's move of α, `alpha` − `alpha_start`.",
     },
     "Fallback and best trial": {
-        "fell_back": "1 if the step ended outside the energy tolerance (α at a bound or out of trials).",
+        "fell_back": "1 if the step ended outside the energy tolerance (a rejected step is not counted).",
         "alpha_at_bound": "1 if the step's α* is at a bound.",
         "trial_better": "1 if the trial ending now is the step's best so far (smallest |r| of the full "
         "trials whose midpoint converged).",
