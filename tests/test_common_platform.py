@@ -20,6 +20,7 @@ from conftest import REFERENCE, analysed_blocks, computed_once, positions_of, to
 from platform_options import configured, platform_and_properties, slow, with_precision
 
 from openmm_alphaprk import (
+    AlphaRattleEnergyIntegrator,
     AlphaRattleIntegrator,
     IncompatibleSystemError,
     RattleIntegrator,
@@ -42,20 +43,18 @@ INTEGRATORS = {
     "alpha6=0": lambda: AlphaRattleIntegrator(H, 0.0, order=6),
     # the energy modes with α pinned to a point: their trials, restarts and midpoint
     # passes, with the controller's choices taken out of the comparison
-    "energy (pinned)": lambda: AlphaRattleIntegrator(
-        H, "energy", alpha_bounds=(0.5, 0.5 + 1e-9), energy_tolerance=1e-9, midpoint_tolerance=1e-10
+    "energy (pinned)": lambda: AlphaRattleEnergyIntegrator(
+        H, alpha_bounds=(0.5, 0.5 + 1e-9), energy_tolerance=1e-9, midpoint_tolerance=1e-10
     ),
-    "energy4 (pinned)": lambda: AlphaRattleIntegrator(
+    "energy4 (pinned)": lambda: AlphaRattleEnergyIntegrator(
         H,
-        "energy",
         order=4,
         alpha_bounds=(0.05, 0.05 + 1e-9),
         energy_tolerance=1e-9,
         midpoint_tolerance=1e-10,
     ),
-    "energy4:triple-jump (pinned)": lambda: AlphaRattleIntegrator(
+    "energy4:triple-jump (pinned)": lambda: AlphaRattleEnergyIntegrator(
         H,
-        "energy",
         composition="triple-jump",
         alpha_bounds=(0.05, 0.05 + 1e-9),
         energy_tolerance=1e-9,
@@ -123,9 +122,8 @@ def test_a_step_ended_in_its_best_trial_continues_as_on_reference(water_box, spe
     """
     results = []
     for platform in ("Reference", spec):
-        integrator = AlphaRattleIntegrator(
+        integrator = AlphaRattleEnergyIntegrator(
             H,
-            "energy",
             order=4,
             composition="triple-jump",
             max_trials=2,
@@ -242,7 +240,7 @@ def _bring_the_reorder_forward(context: mm.Context, uploads: int) -> None:
 def test_energy_modes_keep_one_reference_energy_across_reordering(water_box, spec, order, fraction_of_rattle):
     """The run crosses the platform's atom reordering (``REORDERING_RUNS``) and re-wrapping."""
     run = REORDERING_RUNS[order]
-    integrator = AlphaRattleIntegrator(H, "energy", order=order)
+    integrator = AlphaRattleEnergyIntegrator(H, order=order)
     context = _context(water_box.system, integrator, spec, water_box.positions, water_box.velocities)
     e_ref = total_energy(context)
     _bring_the_reorder_forward(context, run.uploads)
@@ -275,7 +273,7 @@ def test_energy_modes_keep_one_reference_energy_across_reordering(water_box, spe
 
 def _step_by_step(system, spec, positions, velocities, steps):
     """Run the order-4 energy mode one step at a time: positions, total energy, α and trials per step."""
-    integrator = AlphaRattleIntegrator(H, "energy", order=4)
+    integrator = AlphaRattleEnergyIntegrator(H, order=4)
     context = _context(system, integrator, spec, positions, velocities)
     record = {"x": [], "energy": [], "alpha": [], "trials": []}
     for _ in range(steps):
@@ -462,7 +460,7 @@ def test_virtual_sites_refused_where_a_step_cannot_be_right(tip4pew_box, spec):
     for integrator in (
         AlphaRattleIntegrator(H, 0.5),
         AlphaRattleIntegrator(H, 0.05, order=4),
-        AlphaRattleIntegrator(H, "energy", order=4),
+        AlphaRattleEnergyIntegrator(H, order=4),
     ):
         context = _context(system, integrator, spec, x0, v0)
         before = velocities_of(context)  # as the Context holds them (rounded to float in single precision)

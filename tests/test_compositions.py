@@ -11,7 +11,7 @@ import openmm.unit as unit
 import pytest
 from conftest import make_context, positions_of, velocities_of
 
-from openmm_alphaprk import AlphaRattleIntegrator
+from openmm_alphaprk import AlphaRattleEnergyIntegrator, AlphaRattleIntegrator
 from openmm_alphaprk.integrators.compositions import COMPOSITIONS, TRIPLE_JUMP, Composition, composition
 from openmm_alphaprk.observables import convergence_order
 from openmm_alphaprk.reference import (
@@ -137,8 +137,8 @@ def test_the_triple_jump_by_name_is_order_four():
 
 def test_energy_mode_takes_alpha_on_one_stage():
     with pytest.raises(ValueError, match="one stage"):
-        AlphaRattleIntegrator(0.002, "energy", composition="suzuki5", alpha_stages="all")
-    integrator = AlphaRattleIntegrator(0.002, "energy", composition="suzuki5", alpha_stages=(2,))
+        AlphaRattleEnergyIntegrator(0.002, composition="suzuki5", alpha_stages="all")
+    integrator = AlphaRattleEnergyIntegrator(0.002, composition="suzuki5", alpha_stages=(2,))
     assert integrator.composition.alpha_stages == (2,)
 
 
@@ -160,7 +160,7 @@ def test_the_default_energy_mode_holds_h_on_a_water_box_at_the_measured_cost(
 
     rattle = rms(rattle_residuals_on_the_water_box[:40])  # the first 40 steps of the session's RATTLE run
     composed = energy_rms(AlphaRattleIntegrator(0.002, 0.0, order=4))
-    integrator = AlphaRattleIntegrator(0.002, "energy", order=4)
+    integrator = AlphaRattleEnergyIntegrator(0.002, order=4)
     held = energy_rms(integrator)
     totals = integrator.controller_totals()
     assert integrator.composition.name == "suzuki5"

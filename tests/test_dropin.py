@@ -16,6 +16,7 @@ from conftest import make_context, positions_of, velocities_of
 
 import openmm_alphaprk
 from openmm_alphaprk import (
+    AlphaRattleEnergyIntegrator,
     AlphaRattleIntegrator,
     IncompatibleSystemError,
     RattleIntegrator,
@@ -146,7 +147,7 @@ def test_the_energy_mode_warns_about_each_force_it_does_not_apply(water_box, ord
         (mm.CMMotionRemover(), "CMMotionRemover", lambda context: _momentum(context)[0], 1e-6),
     ]
     for force, name, measure, nve in cases:
-        integrator = AlphaRattleIntegrator(H, "energy", order=order)
+        integrator = AlphaRattleEnergyIntegrator(H, order=order)
         context = _context(water_box, [force], integrator, "CPU", drifting)
         with pytest.warns(StateChangingForceWarning, match=name):
             integrator.check_context(context)
@@ -256,7 +257,7 @@ def test_check_context_decides_what_depends_on_the_platform():
     ("platform", "precision"), [("Reference", "double"), ("CPU", "mixed"), (None, "single")]
 )
 def test_the_energy_modes_default_tolerance_follows_the_checked_platform(water_box, platform, precision):
-    integrator = AlphaRattleIntegrator(H, "energy", order=4)
+    integrator = AlphaRattleEnergyIntegrator(H, order=4)
     context = _context(water_box, [], integrator, platform or "Reference")
     if platform is not None:
         integrator.check_context(context)
@@ -273,7 +274,7 @@ def test_stepping_never_looks_for_the_context_in_the_garbage_collector(water_box
     for integrator in (
         RattleIntegrator(H),
         AlphaRattleIntegrator(H, 0.5),
-        AlphaRattleIntegrator(H, "energy"),
+        AlphaRattleEnergyIntegrator(H),
     ):
         context = make_context(water_box.system, integrator, water_box.positions, water_box.velocities)
         integrator.step(2)

@@ -1,4 +1,4 @@
-"""The energy-preserving mode (alpha="energy"): energy, invariants, controller
+"""The energy-preserving mode (AlphaRattleEnergyIntegrator): energy, invariants, controller
 robustness, restarts, diagnostics and errors."""
 
 import numpy as np
@@ -8,7 +8,7 @@ import openmm.unit as unit
 import pytest
 from conftest import REFERENCE, constraint_errors, make_context, positions_of, total_energy, velocities_of
 
-from openmm_alphaprk import AlphaRattleIntegrator, RattleIntegrator
+from openmm_alphaprk import AlphaRattleEnergyIntegrator, AlphaRattleIntegrator, RattleIntegrator
 from openmm_alphaprk.reference import angular_momentum, to_openmm_system, water_cluster
 from openmm_alphaprk.runs.reporters import (
     COLUMNS,
@@ -41,7 +41,7 @@ def _residuals(ctx, integrator, steps, e_ref):
 @pytest.mark.parametrize("order", [2, 4])
 def test_energy_mode_keeps_angular_momentum_to_round_off_by_default_without_a_box(order):
     """Without a periodic box the default midpoint tolerance keeps L (the defaults left 5e-8 at order 2)."""
-    integrator = AlphaRattleIntegrator(0.002, alpha="energy", order=order, constraint_tolerance=1e-12)
+    integrator = AlphaRattleEnergyIntegrator(0.002, order=order, constraint_tolerance=1e-12)
     problem, ctx = _cluster_context(integrator)
     integrator.check_context(ctx)
     l0 = angular_momentum(problem, positions_of(ctx).ravel(), velocities_of(ctx).ravel())
@@ -52,9 +52,7 @@ def test_energy_mode_keeps_angular_momentum_to_round_off_by_default_without_a_bo
 
 
 def test_totals_give_the_rms_and_maximum_of_every_step():
-    integrator = AlphaRattleIntegrator(
-        0.002, alpha="energy", composition="triple-jump", constraint_tolerance=1e-12
-    )
+    integrator = AlphaRattleEnergyIntegrator(0.002, composition="triple-jump", constraint_tolerance=1e-12)
     _, ctx = _cluster_context(integrator)
     assert np.isnan(integrator.controller_totals()["rms_residual"])
     measured, _, _ = _residuals(ctx, integrator, 40, total_energy(ctx))
@@ -68,9 +66,7 @@ def test_totals_give_the_rms_and_maximum_of_every_step():
 
 
 def test_a_chosen_midpoint_tolerance_is_kept_without_a_box():
-    integrator = AlphaRattleIntegrator(
-        0.002, alpha="energy", composition="triple-jump", midpoint_tolerance=1e-7
-    )
+    integrator = AlphaRattleEnergyIntegrator(0.002, composition="triple-jump", midpoint_tolerance=1e-7)
     _, ctx = _cluster_context(integrator)
     integrator.check_context(ctx)
     integrator.step(1)
@@ -86,9 +82,7 @@ def test_energy_mode_on_a_water_cluster_holds_energy_and_keeps_momenta():
     _, ctx = _cluster_context(rattle)
     rattle_residuals, _, _ = _residuals(ctx, rattle, 300, total_energy(ctx))
 
-    integrator = AlphaRattleIntegrator(
-        0.002, alpha="energy", midpoint_tolerance=1e-12, energy_tolerance=0.01, **tight
-    )
+    integrator = AlphaRattleEnergyIntegrator(0.002, midpoint_tolerance=1e-12, energy_tolerance=0.01, **tight)
     problem, ctx = _cluster_context(integrator)
     e_ref = total_energy(ctx)
     x, v = positions_of(ctx).ravel(), velocities_of(ctx).ravel()
@@ -132,7 +126,7 @@ def test_energy_mode_on_a_water_box_beats_rattle_and_keeps_constraints(
     n = 60
     rattle_rms = np.sqrt(np.mean(rattle_residuals_on_the_water_box[:n] ** 2))  # the session's RATTLE run
 
-    integrator = AlphaRattleIntegrator(0.002, alpha="energy", energy_tolerance=0.01)
+    integrator = AlphaRattleEnergyIntegrator(0.002, energy_tolerance=0.01)
     ctx = make_context(water_box.system, integrator, water_box.positions, water_box.velocities)
     measured, claimed, fell_back = _residuals(ctx, integrator, n, total_energy(ctx))
     tolerance = integrator.energy_tolerance.value_in_unit(unit.kilojoules_per_mole)
@@ -151,17 +145,16 @@ def test_energy_mode_on_a_water_box_beats_rattle_and_keeps_constraints(
 
 def test_controller_recovers_from_a_bad_starting_alpha():
     settings = {
-        "alpha": "energy",
         "constraint_tolerance": 1e-12,
         "midpoint_tolerance": 1e-10,
         "energy_tolerance": 0.01,
     }
-    normal = AlphaRattleIntegrator(0.002, **settings)
+    normal = AlphaRattleEnergyIntegrator(0.002, **settings)
     _, ctx = _cluster_context(normal)
     e_ref = total_energy(ctx)
     normal_residuals = _residuals(ctx, normal, 40, e_ref)[0]
 
-    bad = AlphaRattleIntegrator(0.002, **settings)
+    bad = AlphaRattleEnergyIntegrator(0.002, **settings)
     bad.alpha = 50.0  # far outside the bounds: clipped to them, then the controller must find its way back
     _, ctx = _cluster_context(bad)
     bad_residuals = _residuals(ctx, bad, 40, e_ref)[0]
@@ -174,7 +167,7 @@ def test_controller_recovers_from_a_bad_starting_alpha():
 
 @pytest.mark.parametrize("order", [2, 4])
 def test_checkpoint_and_xml_restarts_continue_the_same_trajectory(water_box, order):
-    integrator = AlphaRattleIntegrator(0.002, alpha="energy", order=order)
+    integrator = AlphaRattleEnergyIntegrator(0.002, order=order)
     ctx = make_context(water_box.system, integrator, water_box.positions, water_box.velocities)
     integrator.step(3)
     checkpoint = ctx.createCheckpoint()
@@ -183,7 +176,7 @@ def test_checkpoint_and_xml_restarts_continue_the_same_trajectory(water_box, ord
     integrator.step(3)
     expected = positions_of(ctx), integrator.alpha, integrator.reference_energy, integrator.energy_residual
 
-    fresh = AlphaRattleIntegrator(0.002, alpha="energy", order=order)
+    fresh = AlphaRattleEnergyIntegrator(0.002, order=order)
     ctx2 = mm.Context(water_box.system, fresh, REFERENCE)
     ctx2.loadCheckpoint(checkpoint)
     fresh.step(3)
@@ -202,7 +195,7 @@ def test_checkpoint_and_xml_restarts_continue_the_same_trajectory(water_box, ord
 
 
 def test_reference_energy_is_retaken_when_the_state_is_changed(water_box):
-    integrator = AlphaRattleIntegrator(0.002, alpha="energy")
+    integrator = AlphaRattleEnergyIntegrator(0.002)
     ctx = make_context(water_box.system, integrator, water_box.positions, water_box.velocities)
     assert np.isnan(integrator.reference_energy.value_in_unit(unit.kilojoules_per_mole))
     integrator.step(2)
@@ -225,7 +218,7 @@ def test_reference_energy_is_retaken_when_the_state_is_changed(water_box):
 
 
 def test_controller_reporter_writes_every_step_as_it_goes(water_box, tmp_path):
-    integrator = AlphaRattleIntegrator(0.002, alpha="energy")
+    integrator = AlphaRattleEnergyIntegrator(0.002)
     simulation = app.Simulation(water_box.topology, water_box.system, integrator, REFERENCE)
     simulation.context.setPositions(water_box.positions)
     simulation.context.setVelocities(water_box.velocities)
@@ -274,31 +267,30 @@ def test_controller_reporter_writes_every_step_as_it_goes(water_box, tmp_path):
 @pytest.mark.parametrize(
     ("kwargs", "error", "match"),
     [
-        ({"alpha": "fast"}, ValueError, "a number or 'energy'"),
-        ({"alpha": "energy", "alpha_bounds": (1.0, 1.0)}, ValueError, "low < high"),
-        ({"alpha": "energy", "alpha_bounds": (2.0, -1.0)}, ValueError, "empty or inverted"),
-        ({"alpha": "energy", "alpha_bounds": (float("nan"), 1.0)}, ValueError, "finite"),
-        ({"alpha": "energy", "alpha_bounds": 3.0}, TypeError, "pair"),
-        ({"alpha": "energy", "energy_tolerance": 0.0}, ValueError, "energy_tolerance must be positive"),
-        ({"alpha": "energy", "energy_tolerance": -1e-3}, ValueError, "energy_tolerance must be positive"),
-        ({"alpha": "energy", "energy_tolerance": 1 * unit.nanometers}, TypeError, "cannot be converted"),
-        ({"alpha": "energy", "max_trials": 0}, ValueError, "positive integer"),
+        ({"alpha_bounds": (1.0, 1.0)}, ValueError, "low < high"),
+        ({"alpha_bounds": (2.0, -1.0)}, ValueError, "empty or inverted"),
+        ({"alpha_bounds": (float("nan"), 1.0)}, ValueError, "finite"),
+        ({"alpha_bounds": 3.0}, TypeError, "pair"),
+        ({"energy_tolerance": 0.0}, ValueError, "energy_tolerance must be positive"),
+        ({"energy_tolerance": -1e-3}, ValueError, "energy_tolerance must be positive"),
+        ({"energy_tolerance": 1 * unit.nanometers}, TypeError, "cannot be converted"),
+        ({"max_trials": 0}, ValueError, "positive integer"),
         # measured: one trial per step kept α at 0 at both orders (RATTLE / triple jump at a higher cost)
-        ({"alpha": "energy", "max_trials": 1}, ValueError, "never moves alpha.*max_trials >= 2"),
-        ({"alpha": "energy", "order": 4, "max_trials": 1}, ValueError, "never moves alpha.*max_trials >= 2"),
-        ({"alpha": "energy", "max_alpha_change": 0}, ValueError, "max_alpha_change must be positive"),
-        ({"alpha": "energy", "alpha_probe": -0.1}, ValueError, "alpha_probe must be positive"),
-        ({"alpha": "energy", "slope_damping": -0.5}, ValueError, "slope_damping must be >= 0"),
-        ({"alpha": "energy", "order": 4, "alpha_bounds": (0.3, 0.1)}, ValueError, "low < high"),
+        ({"max_trials": 1}, ValueError, "never moves alpha.*max_trials >= 2"),
+        ({"order": 4, "max_trials": 1}, ValueError, "never moves alpha.*max_trials >= 2"),
+        ({"max_alpha_change": 0}, ValueError, "max_alpha_change must be positive"),
+        ({"alpha_probe": -0.1}, ValueError, "alpha_probe must be positive"),
+        ({"slope_damping": -0.5}, ValueError, "slope_damping must be >= 0"),
+        ({"order": 4, "alpha_bounds": (0.3, 0.1)}, ValueError, "low < high"),
     ],
 )
 def test_bad_energy_mode_settings_give_clear_errors(kwargs, error, match):
     with pytest.raises(error, match=match):
-        AlphaRattleIntegrator(0.002, **kwargs)
+        AlphaRattleEnergyIntegrator(0.002, **kwargs)
 
 
 def test_energy_mode_settings_are_checked_later_too_and_need_the_mode():
-    integrator = AlphaRattleIntegrator(0.002, alpha="energy", energy_tolerance=0.02 * unit.kilojoule_per_mole)
+    integrator = AlphaRattleEnergyIntegrator(0.002, energy_tolerance=0.02 * unit.kilojoule_per_mole)
     assert integrator.energy_tolerance == 0.02 * unit.kilojoules_per_mole
     with pytest.raises(ValueError, match="low < high"):
         integrator.alpha_bounds = (0.5, 0.1)
@@ -306,22 +298,22 @@ def test_energy_mode_settings_are_checked_later_too_and_need_the_mode():
         integrator.energy_tolerance = 0
     integrator.alpha_bounds = (0.0, 1.0)
     assert integrator.alpha_bounds == (0.0, 1.0)
-    assert "energy" in repr(integrator)
+    assert repr(integrator) == "AlphaRattleEnergyIntegrator(timestep=0.002 ps)"
     fixed = AlphaRattleIntegrator(0.002, alpha=0.5)
     assert not fixed.energy_mode
-    with pytest.raises(AttributeError, match="alpha='energy'"):
+    with pytest.raises(AttributeError, match=r"AlphaRattleEnergyIntegrator\(timestep"):
         fixed.reset_reference_energy()
-    with pytest.raises(AttributeError, match="alpha='energy'"):
+    with pytest.raises(AttributeError, match=r"AlphaRattleEnergyIntegrator\(timestep"):
         _ = fixed.energy_residual
 
 
 def test_the_energy_mode_is_its_own_class_and_survives_serialization_and_copies():
-    """alpha='energy' makes an AlphaRattleEnergyIntegrator; XML, restore and deepcopy keep the class."""
+    """The energy mode is its own class; XML, restore and deepcopy keep the class."""
     import copy
 
     from openmm_alphaprk import AlphaRattleEnergyIntegrator, restore_integrator
 
-    energy = AlphaRattleIntegrator(0.002, alpha="energy", composition="triple-jump")
+    energy = AlphaRattleEnergyIntegrator(0.002, composition="triple-jump")
     fixed = AlphaRattleIntegrator(0.002, alpha=0.1)
     assert type(energy) is AlphaRattleEnergyIntegrator and isinstance(energy, AlphaRattleIntegrator)
     assert type(fixed) is AlphaRattleIntegrator
@@ -330,18 +322,32 @@ def test_the_energy_mode_is_its_own_class_and_survives_serialization_and_copies(
         assert type(restored) is type(original)
         assert restored.energy_mode == original.energy_mode
         assert type(copy.deepcopy(original)) is type(original)
-    with pytest.raises(ValueError, match="alpha='energy'"):
+    with pytest.raises(TypeError, match="alpha"):
         AlphaRattleEnergyIntegrator(0.002, alpha=0.1)
+    with pytest.raises(ValueError, match=r"takes no alpha.*AlphaRattleEnergyIntegrator\(timestep, order=4\)"):
+        AlphaRattleEnergyIntegrator(0.002, "energy")
+
+
+def test_the_energy_mode_asked_of_the_fixed_alpha_class_names_its_class():
+    """``AlphaRattleIntegrator(h, "energy")`` (the former factory) refuses with the replacement."""
+    with pytest.raises(
+        ValueError, match=r"its own class: use AlphaRattleEnergyIntegrator\(timestep, order=4"
+    ):
+        AlphaRattleIntegrator(0.002, "energy")
+    with pytest.raises(ValueError, match=r"AlphaRattleEnergyIntegrator"):
+        AlphaRattleIntegrator(0.002, alpha="energy", order=4)
+    with pytest.raises(ValueError, match="alpha must be a number"):
+        AlphaRattleIntegrator(0.002, alpha="fast")
 
 
 def test_energy_mode_options_with_a_fixed_alpha_are_refused():
-    """An option of the energy mode given with a fixed α would do nothing: an error names it."""
-    with pytest.raises(ValueError, match="alpha_bounds.*energy mode"):
+    """An option of the energy mode is not a parameter of the fixed-α class."""
+    with pytest.raises(TypeError, match="alpha_bounds"):
         AlphaRattleIntegrator(0.002, alpha=0.1, alpha_bounds=(-0.1, 0.1))
-    with pytest.raises(ValueError, match="energy_tolerance, max_trials"):
+    with pytest.raises(TypeError, match="energy_tolerance"):
         AlphaRattleIntegrator(0.002, energy_tolerance=0.1, max_trials=5)
     fixed = AlphaRattleIntegrator(0.002, alpha=0.1)
-    with pytest.raises(AttributeError, match="alpha='energy'"):
+    with pytest.raises(AttributeError, match="AlphaRattleEnergyIntegrator"):
         fixed.energy_tolerance = 0.05  # would be kept on the Python object and do nothing
 
 

@@ -10,7 +10,7 @@ import openmm.unit as unit
 import pytest
 from conftest import make_context, positions_of, velocities_of
 
-from openmm_alphaprk import AlphaRattleIntegrator, RattleIntegrator
+from openmm_alphaprk import AlphaRattleEnergyIntegrator, AlphaRattleIntegrator, RattleIntegrator
 from openmm_alphaprk.observables import convergence_order, energy_residuals, rms
 from openmm_alphaprk.reference import (
     GAMMA1,
@@ -116,9 +116,11 @@ def test_openmm_agrees_with_numpy_reference_step_for_step(alpha, make_problem, t
 @pytest.mark.parametrize("alpha", [0.3, "energy"])
 def test_water_cluster_keeps_constraints_and_angular_momentum(alpha):
     problem, x0, v0 = water_cluster(8, spacing=0.3, seed=5)
-    integrator = AlphaRattleIntegrator(
-        0.002, alpha, composition="triple-jump", constraint_tolerance=1e-12, midpoint_tolerance=1e-13
-    )
+    options = dict(composition="triple-jump", constraint_tolerance=1e-12, midpoint_tolerance=1e-13)
+    if alpha == "energy":
+        integrator = AlphaRattleEnergyIntegrator(0.002, **options)
+    else:
+        integrator = AlphaRattleIntegrator(0.002, alpha, **options)
     ctx = make_context(to_openmm_system(problem), integrator, x0.reshape(-1, 3), v0.reshape(-1, 3))
     ctx.applyConstraints(1e-12)
     ctx.applyVelocityConstraints(1e-12)
@@ -167,7 +169,7 @@ def test_energy_mode_on_a_water_box_is_far_below_rattle(water_box):
         triple_jump,
         steps,
     )
-    integrator = AlphaRattleIntegrator(0.002, "energy", composition="triple-jump", energy_tolerance=0.01)
+    integrator = AlphaRattleEnergyIntegrator(0.002, composition="triple-jump", energy_tolerance=0.01)
     ctx = make_context(water_box.system, integrator, water_box.positions, water_box.velocities, CPU)
     energy_rms = _energy_rms(ctx, integrator, steps)
     totals = integrator.controller_totals()
@@ -189,7 +191,7 @@ def test_order_is_checked_and_reported():
         AlphaRattleIntegrator(0.002, order=3)
     with pytest.raises(ValueError, match="order must be 2"):
         AlphaRattleIntegrator(0.002, order=True)
-    integrator = AlphaRattleIntegrator(0.002, "energy", composition="triple-jump")
+    integrator = AlphaRattleEnergyIntegrator(0.002, composition="triple-jump")
     assert integrator.order == 4
     assert integrator.alpha_bounds == (-0.2, 0.2)
     assert f"composition={integrator.composition.name!r}" in repr(integrator)

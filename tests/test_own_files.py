@@ -14,7 +14,7 @@ import openmm.unit as unit
 import pytest
 from quick_systems import QUICK
 
-from openmm_alphaprk import AlphaRattleIntegrator
+from openmm_alphaprk import AlphaRattleEnergyIntegrator
 from openmm_alphaprk.cli import main
 from openmm_alphaprk.nve import LargeStepWarning, StateChangingForceWarning, step_size_problem
 from openmm_alphaprk.runs import run_nve
@@ -261,7 +261,7 @@ def test_an_energy_mode_step_on_user_files_matches_one_on_the_same_system_built_
     )
     results = []
     for system in (prepared.system, ours.system):
-        integrator = AlphaRattleIntegrator(0.002, "energy", order=4)
+        integrator = AlphaRattleEnergyIntegrator(0.002, order=4)
         context = mm.Context(system, integrator, mm.Platform.getPlatformByName("Reference"))
         context.setPeriodicBoxVectors(*prepared.state.getPeriodicBoxVectors())
         context.setPositions(prepared.state.getPositions())

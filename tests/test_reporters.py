@@ -9,7 +9,7 @@ import openmm as mm
 import openmm.app as app
 import pytest
 
-from openmm_alphaprk import AlphaRattleEnergyIntegrator, AlphaRattleIntegrator
+from openmm_alphaprk import AlphaRattleEnergyIntegrator
 from openmm_alphaprk.reference import to_openmm_system, water_cluster
 from openmm_alphaprk.runs import reporters
 from openmm_alphaprk.runs.reporters import (
@@ -27,7 +27,7 @@ REFERENCE = mm.Platform.getPlatformByName("Reference")
 def _simulation() -> app.Simulation:
     """Eight rigid TIP3P waters in vacuum, α-RATTLE's energy mode on the Reference platform: cheap steps."""
     problem, x0, v0 = water_cluster(8, spacing=0.3, seed=5)
-    integrator = AlphaRattleIntegrator(0.002, alpha="energy")
+    integrator = AlphaRattleEnergyIntegrator(0.002)
     simulation = app.Simulation(app.Topology(), to_openmm_system(problem), integrator, REFERENCE)
     simulation.context.setPositions(x0.reshape(-1, 3))
     simulation.context.setVelocities(v0.reshape(-1, 3))

@@ -9,7 +9,7 @@ import openmm.app as app
 import openmm.unit as unit
 import pytest
 
-from openmm_alphaprk import AlphaRattleIntegrator, NonSmoothForcesWarning
+from openmm_alphaprk import AlphaRattleEnergyIntegrator, AlphaRattleIntegrator, NonSmoothForcesWarning
 from openmm_alphaprk.integrators.energy_mode import DIAGNOSIS_STEPS
 
 
@@ -24,7 +24,7 @@ def _rough(water_box) -> mm.System:
 
 
 def _run(system, water_box, steps_per_call: int, total: int = DIAGNOSIS_STEPS + 10) -> AlphaRattleIntegrator:
-    integrator = AlphaRattleIntegrator(0.002, "energy", order=4)
+    integrator = AlphaRattleEnergyIntegrator(0.002, order=4)
     context = mm.Context(system, integrator, mm.Platform.getPlatformByName("CPU"))
     context.setPeriodicBoxVectors(*water_box.state.getPeriodicBoxVectors())
     context.setPositions(water_box.state.getPositions())

@@ -14,6 +14,7 @@ import pytest
 
 import openmm_alphaprk
 from openmm_alphaprk import (
+    AlphaRattleEnergyIntegrator,
     AlphaRattleIntegrator,
     NonSmoothForcesWarning,
     RattleIntegrator,
@@ -70,7 +71,7 @@ def _ours(record):
 @pytest.mark.parametrize("order", [2, 4])
 def test_energy_mode_warns_at_check_context_pointing_at_the_users_call(water, order):
     forcefield, topology, positions = water
-    integrator = AlphaRattleIntegrator(0.001, alpha="energy", order=order)
+    integrator = AlphaRattleEnergyIntegrator(0.001, order=order)
     context = _context(_create(forcefield, topology), integrator, positions)
     with pytest.warns(NonSmoothForcesWarning, match="without a switching function") as record:
         integrator.check_context(context)
@@ -88,7 +89,7 @@ def test_energy_mode_warns_at_check_context_pointing_at_the_users_call(water, or
 def test_energy_mode_without_check_context_cannot_see_the_system_and_says_nothing(water):
     """Without check_context the integrator cannot see its System: no warning, the noisiest tolerance."""
     forcefield, topology, positions = water
-    integrator = AlphaRattleIntegrator(0.001, alpha="energy", composition="triple-jump")
+    integrator = AlphaRattleEnergyIntegrator(0.001, composition="triple-jump")
     context = _context(_create(forcefield, topology), integrator, positions)
     with warnings.catch_warnings(record=True) as record:
         warnings.simplefilter("always")
@@ -108,7 +109,7 @@ def test_a_barostat_added_before_reinitialize_is_reported_at_the_next_step_at_th
     forcefield, topology, positions = water
     system = _create(forcefield, topology)
     make_smooth(system)
-    integrator = AlphaRattleIntegrator(0.001, alpha="energy", composition="triple-jump")
+    integrator = AlphaRattleEnergyIntegrator(0.001, composition="triple-jump")
     simulation = app.Simulation(topology, system, integrator, mm.Platform.getPlatformByName("CPU"))
     simulation.context.setPositions(positions)
     with warnings.catch_warnings(record=True) as record:
@@ -131,7 +132,7 @@ def test_no_warning_after_make_smooth(water):
     system = _create(forcefield, topology)
     assert len(make_smooth(system)) == 2  # switch on, Ewald tightened
     assert smoothness_problems(system) == []
-    integrator = AlphaRattleIntegrator(0.001, alpha="energy", composition="triple-jump")
+    integrator = AlphaRattleEnergyIntegrator(0.001, composition="triple-jump")
     context = _context(system, integrator, positions)
     with warnings.catch_warnings(record=True) as record:
         warnings.simplefilter("always")
@@ -374,7 +375,7 @@ def test_prepare_for_nve_readies_a_default_create_system_and_the_energy_mode_doe
     assert smoothness_problems(system) == [] and state_changing_forces(system) == []
     nonbonded = next(f for f in system.getForces() if isinstance(f, mm.NonbondedForce))
     assert nonbonded.getEwaldErrorTolerance() == SMOOTH_EWALD_TOLERANCE
-    integrator = AlphaRattleIntegrator(0.001, alpha="energy", composition="triple-jump")
+    integrator = AlphaRattleEnergyIntegrator(0.001, composition="triple-jump")
     context = _context(system, integrator, positions)
     with warnings.catch_warnings(record=True) as record:
         warnings.simplefilter("always")

@@ -14,7 +14,12 @@ from pathlib import Path
 
 import openmm as mm
 
-from openmm_alphaprk import AlphaRattleIntegrator, RattleIntegrator, RattleRescaleIntegrator
+from openmm_alphaprk import (
+    AlphaRattleEnergyIntegrator,
+    AlphaRattleIntegrator,
+    RattleIntegrator,
+    RattleRescaleIntegrator,
+)
 
 GOLDEN = Path(__file__).parent / "golden" / "step_programs.txt"
 
@@ -42,12 +47,10 @@ INTEGRATORS = {
     "AlphaRattleIntegrator(0.002, alpha=0, order=6)": lambda: AlphaRattleIntegrator(
         0.002, alpha=0.0, order=6
     ),
-    "AlphaRattleIntegrator(0.002, alpha='energy')": lambda: AlphaRattleIntegrator(0.002, alpha="energy"),
-    "AlphaRattleIntegrator(0.002, alpha='energy', order=4)": lambda: AlphaRattleIntegrator(
-        0.002, alpha="energy", order=4
-    ),
-    "AlphaRattleIntegrator(0.002, alpha='energy', composition='triple-jump')": lambda: AlphaRattleIntegrator(
-        0.002, alpha="energy", composition="triple-jump"
+    "AlphaRattleEnergyIntegrator(0.002)": lambda: AlphaRattleEnergyIntegrator(0.002),
+    "AlphaRattleEnergyIntegrator(0.002, order=4)": lambda: AlphaRattleEnergyIntegrator(0.002, order=4),
+    "AlphaRattleEnergyIntegrator(0.002, composition='triple-jump')": lambda: AlphaRattleEnergyIntegrator(
+        0.002, composition="triple-jump"
     ),
 }
 

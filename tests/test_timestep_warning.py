@@ -5,7 +5,12 @@ import warnings
 import openmm.unit as unit
 import pytest
 
-from openmm_alphaprk import AlphaRattleIntegrator, RattleIntegrator, TimestepUnitWarning
+from openmm_alphaprk import (
+    AlphaRattleEnergyIntegrator,
+    AlphaRattleIntegrator,
+    RattleIntegrator,
+    TimestepUnitWarning,
+)
 
 
 @pytest.mark.parametrize("make", [AlphaRattleIntegrator, RattleIntegrator])
@@ -22,7 +27,7 @@ def test_a_plain_two_is_two_picoseconds_and_warns_at_the_callers_line(make):
 def test_plain_steps_up_to_10_fs_and_any_quantity_do_not_warn(timestep):
     with warnings.catch_warnings():
         warnings.simplefilter("error", TimestepUnitWarning)
-        AlphaRattleIntegrator(timestep, alpha="energy", order=4)
+        AlphaRattleEnergyIntegrator(timestep, order=4)
         RattleIntegrator(timestep)
 
 

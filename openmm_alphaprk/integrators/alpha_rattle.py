@@ -7,9 +7,9 @@ The classes, each an integrator (the pieces they are built from are in :mod:`~.p
     └ AlphaRattleIntegrator           here: fixed α, one step or a composition
       └ AlphaRattleEnergyIntegrator   energy_mode.py: α chosen every step to hold the energy
 
-``AlphaRattleIntegrator(timestep, alpha="energy")`` returns an
-:class:`~.energy_mode.AlphaRattleEnergyIntegrator` (its programs and controller are in
-:mod:`~.energy_mode`). The two fixed-α programs (one step, or a composition) are the
+The energy mode is its own class, :class:`~.energy_mode.AlphaRattleEnergyIntegrator`
+(its programs and controller are in :mod:`~.energy_mode`); this module does not import
+it. The two fixed-α programs (one step, or a composition) are the
 ``_build_*`` methods below; a composition's program runs its stages from the first
 α stage in one loop (:meth:`~.pieces._StepProgram._add_composition_loop`; the energy
 mode's loop adds its trial ends, ``energy_mode``), built from the composition's
@@ -18,7 +18,6 @@ coefficients (:mod:`~.compositions`).
 
 from __future__ import annotations
 
-from functools import cache
 from typing import ClassVar
 
 import openmm.unit as unit
@@ -26,13 +25,7 @@ import openmm.unit as unit
 from .._units import InputError, to_dimensionless, to_float
 from ..observables import positive_int
 from .compositions import Composition, requested_composition
-from .energy_settings import (
-    CONTROLLER_DEFAULTS,
-    DEFAULT_SLOPE_DAMPING,
-    ControllerSettings,
-    alpha_scale_of,
-    controller_settings,
-)
+from .energy_settings import ControllerSettings
 from .pieces import (
     DEFAULT_CONSTRAINT_TOLERANCE,
     MidpointConvergenceError,
@@ -51,7 +44,7 @@ DEFAULT_MAX_MIDPOINT_ITERATIONS = 20
 
 
 class AlphaRattleIntegrator(_StepProgram):
-    """α-RATTLE: a one-parameter family of symplectic constrained integrators.
+    """α-RATTLE with a fixed α: a one-parameter family of symplectic constrained integrators.
 
     The potential is integrated along the straight path x0 → x1 with weights
     (½−α, 2α, ½−α) at (0, ½, 1); α = 0 is RATTLE. For every fixed α the map is
@@ -61,187 +54,139 @@ class AlphaRattleIntegrator(_StepProgram):
 
     With ``order=4`` or ``6``, or a ``composition``, the step is a symmetric composition
     of such steps (:mod:`~.compositions`), α on its middle stage unless ``alpha_stages``
-    says otherwise. With ``alpha="energy"`` the call returns an
-    :class:`AlphaRattleEnergyIntegrator`, which chooses α anew every step so that the
-    total energy after the step equals E_ref, the energy of the starting state (the
-    controller: this module's docstring). Each step is still a member of the family, so
-    constraints and linear momentum are kept exactly and angular momentum to the
-    midpoint tolerance; symplecticity is given up. The energy mode's options below are
-    refused with a fixed α, where they would do nothing, and its properties and methods
-    exist only on the energy-mode integrator.
+    says otherwise. ``AlphaRattleIntegrator(h, 0.0, order=4)`` (``alpha4=0`` on the
+    command line) is Suzuki's fourth-order composition of RATTLE steps. The energy mode,
+    which chooses α every step to hold the total energy, is
+    :class:`~.energy_mode.AlphaRattleEnergyIntegrator`.
 
     :meth:`program_listing` prints the step program OpenMM runs; docs/step_programs.md
     lists every configuration's.
 
     Parameters
     ----------
-    timestep
-        Step size (Quantity, or number in picoseconds).
-    alpha
-        The method parameter α (a finite number), or ``"energy"`` for the
-        energy-preserving mode. α = 0 takes the RATTLE path with one force
-        evaluation per step; α ≠ 0 needs the implicit midpoint force.
-    constraint_tolerance
+    timestep : openmm.unit.Quantity or float
+        Step size (a time Quantity, or a number in picoseconds).
+    alpha : float, default 0.0
+        The method parameter α (a finite number). α = 0 takes the RATTLE path with one
+        force evaluation per step; α ≠ 0 needs the implicit midpoint force.
+    constraint_tolerance : float, default 1e-8
         Relative constraint tolerance passed to ``setConstraintTolerance``.
-    midpoint_tolerance
+    midpoint_tolerance : openmm.unit.Quantity or float, optional
         The midpoint iteration stops when the change that the last midpoint force
-        makes to the next solve of x1, h²α ΔF/m, falls below this (nm, RMS per
-        degree of freedom). Default 1e-10 nm for fixed α (symplectic to that
-        level). In the energy mode with a periodic box 1e-7 nm (order 2) or 1e-5 nm
-        (order 4, where α* is ~100× smaller), since there it only limits how well
-        angular momentum is kept (ΔL ≈ 2hα δx_m × F per step), which a periodic box
-        does not conserve anyway, and the energy is measured on the state the step
-        ends in whatever the midpoint; without a periodic box 1e-13 nm, set by
-        :meth:`check_context`, which keeps angular momentum to round-off.
-    max_midpoint_iterations
-        Cap on midpoint force evaluations per step (in the energy mode summed over the
-        trials; a trial takes one or more midpoint evaluations and one (order 2) or two
-        (order 4) more).
-    alpha_bounds
-        Energy mode: the interval (low, high) α* is kept in; default (−0.5, 1.5) at
-        order 2; on a composition (−0.2, 0.2) × s, s = (1.702/|c_α|)³ the α
-        stage's authority against the triple jump's middle stage
-        (:func:`~.energy_settings.alpha_scale_of`: 1 for the triple jump, 17.3 for
-        Suzuki's 5-stage composition).
-    energy_tolerance
-        Energy mode: target |H − E_ref| after each step (Quantity or kJ/mol). The
-        default (None) is 3× the measured noise of OpenMM's energy for the system's
-        size and the platform's precision
-        (:func:`openmm_alphaprk.platforms.default_energy_tolerance`), set by
-        :meth:`check_context`: 0.011 kJ/mol for 2,661 atoms in mixed precision or on the
-        CPU platform, 0.053 for 21k atoms, 0.00075 for 2,661 atoms in double precision
-        (Reference). Without it the platform is not known, and each ``step()`` call
-        sets the single-precision value (the noisiest: 0.016 kJ/mol for 2,661 atoms). A
-        target inside the noise only buys trials that chase round-off.
-    max_trials
-        Energy mode: trials per step that may change α; after them α is frozen
-        and further trials only converge the midpoint force. At least 2: only a
-        second trial measures the slope dH/dα that moves α. Default 3 at order 2,
-        4 at order 4 (where a trial after the first is short; taking its last
-        sub-step once α stopped does not count as a trial).
-    max_alpha_change
-        Energy mode: the largest change of α one secant update may make (default 1
-        at order 2, 0.05 × s on a composition).
-    alpha_probe
-        Energy mode: the smallest first move of α in a step, so that the step can
-        measure its own slope dH/dα (default 0.05 at order 2, 0.005 × s on a composition).
-    slope_damping
-        Energy mode: d in the damped secant step Δα = −r S/(S² + (d S̄)²), where S̄
-        is a running mean of the measured slopes |S| (0 turns the damping off).
-    order
-        2 (default): the α-RATTLE step. 4: α-RATTLE-4, the default fourth-order
-        composition, Suzuki's five stages (p, p, 1 − 4p, p, p), p = 1/(4 − 4^{1/3}):
-        fourth order at α = 0 (five force evaluations per step), second order at a
-        fixed α ≠ 0 on one stage, and fourth order again in the energy mode, where
-        α* = O(h²). Its sub-steps are 0.41h and −0.66h. 6: the default sixth-order
-        composition, McLachlan's nine stages. ``docs/compositions.md`` has the
-        measurements behind the defaults.
-    composition
-        A name of :data:`~.compositions.COMPOSITIONS` (``"triple-jump"``, the former
-        order-4 default, three stages 1.35h, −1.70h, 1.35h; ``"suzuki5"``,
-        ``"mclachlan5"``, ``"yoshida7"``, ``"kahan-li-s9odr6a"``, ``"mclachlan9"``) or a
+        makes to the next solve of x1, h²α ΔF/m, falls below this (nm, RMS per degree
+        of freedom). Default 1e-10 nm: symplectic to that level.
+    max_midpoint_iterations : int, default 20
+        Cap on midpoint force evaluations per step.
+    order : {2, 4, 6}, optional
+        2 (default): the α-RATTLE step. 4: Suzuki's five stages (p, p, 1 − 4p, p, p),
+        p = 1/(4 − 4^{1/3}): fourth order at α = 0 (five force evaluations per step),
+        second order at a fixed α ≠ 0 on one stage. Its sub-steps are 0.41h and −0.66h.
+        6: McLachlan's nine stages. ``docs/compositions.md`` has the measurements
+        behind the defaults.
+    composition : str or Composition, optional
+        A name of :data:`~.compositions.COMPOSITIONS` (``"triple-jump"``, three stages
+        1.35h, −1.70h, 1.35h; ``"suzuki5"``, ``"mclachlan5"``, ``"yoshida7"``,
+        ``"kahan-li-s9odr6a"``, ``"mclachlan9"``) or a
         :class:`~.compositions.Composition`; sets the order.
-    alpha_stages
-        The stages that carry α: ``"middle"`` (default), ``"all"`` or stage numbers
-        (1-based). With α on every stage a fixed α keeps the composition's order (it
-        composes one symmetric second-order method); the energy mode takes α on one
-        stage.
+    alpha_stages : {"middle", "all"} or tuple of int, optional
+        The stages of a composition that carry α: ``"middle"`` (default), ``"all"`` or
+        stage numbers (1-based). With α on every stage a fixed α keeps the
+        composition's order (it composes one symmetric second-order method).
+
+    Raises
+    ------
+    openmm_alphaprk.integrators.pieces.IncompatibleSystemError
+        From :meth:`check_context` or the first step, for a System the program cannot
+        integrate (virtual sites with α ≠ 0).
+
+    See Also
+    --------
+    RattleIntegrator : α = 0 as its own class.
+    AlphaRattleEnergyIntegrator : α chosen every step to hold the energy.
+    RattleRescaleIntegrator : RATTLE (or a composition) with velocity rescaling.
 
     Notes
     -----
     Where the force is constant, every member of the family is the same map as
     RATTLE: α acts only through how the force varies along the step.
 
-    With a fixed α each step starts with OpenMM's update-context-state step, as a
-    ``VerletIntegrator`` step does: a Monte Carlo barostat, an ``AndersenThermostat``
-    or a ``CMMotionRemover`` acts as it does there. The energy mode leaves them out
-    and runs NVE (:func:`openmm_alphaprk.nve.state_changing_forces` says why);
-    :meth:`check_context` warns about them, and about forces that are not smooth.
+    Each step starts with OpenMM's update-context-state step, as a ``VerletIntegrator``
+    step does: a Monte Carlo barostat, an ``AndersenThermostat`` or a
+    ``CMMotionRemover`` acts as it does there. :meth:`check_context` warns about
+    forces that are not smooth.
+
+    Examples
+    --------
+    Suzuki's composition of RATTLE steps (``alpha4=0``), then one α-RATTLE step with
+    α = 0.1, on two constrained argon atoms:
+
+    >>> import openmm, openmm.unit as unit
+    >>> from openmm_alphaprk import AlphaRattleIntegrator
+    >>> integrator = AlphaRattleIntegrator(2 * unit.femtoseconds, 0.0, order=4)
+    >>> integrator
+    AlphaRattleIntegrator(timestep=0.002 ps, alpha=0.0, composition='suzuki5')
+    >>> system = openmm.System()
+    >>> for _ in range(2):
+    ...     _ = system.addParticle(39.9)
+    >>> _ = system.addConstraint(0, 1, 0.3)
+    >>> context = openmm.Context(system, integrator, openmm.Platform.getPlatformByName("Reference"))
+    >>> context.setPositions([[0, 0, 0], [0.3, 0, 0]])
+    >>> context.setVelocities([[0, 0.1, 0], [0, -0.1, 0]])
+    >>> integrator.step(10)
+    >>> integrator.alpha = 0.1  # between steps: the program reads α each step
+    >>> integrator.step(10)
+    >>> integrator.midpoint_iterations  # the implicit midpoint force converges
+    2
     """
 
     _kind = 2
-    #: True if α is chosen each step to hold the energy (``alpha="energy"``).
+    #: True if α is chosen each step to hold the energy (:class:`~.energy_mode.AlphaRattleEnergyIntegrator`).
     energy_mode: ClassVar[bool] = False
 
     def __init__(
         self,
         timestep: unit.Quantity | float,
-        alpha: float | str = 0.0,
+        alpha: float = 0.0,
         constraint_tolerance: float = DEFAULT_CONSTRAINT_TOLERANCE,
         midpoint_tolerance: unit.Quantity | float | None = None,
         max_midpoint_iterations: int = DEFAULT_MAX_MIDPOINT_ITERATIONS,
         *,
-        alpha_bounds: tuple[float, float] | None = None,
-        energy_tolerance: unit.Quantity | float | None = None,
-        max_trials: int | None = None,
-        max_alpha_change: float | None = None,
-        alpha_probe: float | None = None,
-        slope_damping: float = DEFAULT_SLOPE_DAMPING,
         order: int | None = None,
         composition: str | Composition | None = None,
         alpha_stages: str | tuple[int, ...] | None = None,
     ) -> None:
+        if isinstance(alpha, str):
+            raise InputError(_energy_mode_refusal(alpha))
         order, chosen = _order_and_composition(order, composition, alpha_stages)
-        if chosen is not None and _is_energy_mode(alpha) and len(chosen.alpha_stages) != 1:
-            raise InputError(
-                "the energy mode takes alpha on one stage of a composition, got stages "
-                f"{chosen.alpha_stages} of {chosen.name!r}; use alpha_stages='middle' or one stage "
-                "number, or a fixed alpha."
-            )
-        self._composition = chosen
-        controls = 2 if chosen is None else 4  # the controller's defaults: one step, or a composition
-        if _is_energy_mode(alpha) != self.energy_mode:
-            raise InputError(
-                f"{type(self).__name__} was given alpha={alpha!r}; create integrators with "
-                "AlphaRattleIntegrator(timestep, alpha), where alpha='energy' gives the energy mode."
-            )
-        if self.energy_mode:
-            settings = controller_settings(
-                controls,
-                alpha_bounds,
-                energy_tolerance,
-                max_trials,
-                max_alpha_change,
-                alpha_probe,
-                slope_damping,
-                automatic_midpoint_tolerance=midpoint_tolerance is None,
-                alpha_scale=1.0 if chosen is None else alpha_scale_of(chosen),
-            )
-            low, high = settings.alpha_bounds
-            start_alpha = min(max(0.0, low), high)
-            default_tolerance = CONTROLLER_DEFAULTS[controls].midpoint_tolerance
-        else:
-            _refuse_energy_options(
-                alpha,
-                alpha_bounds=alpha_bounds is not None,
-                energy_tolerance=energy_tolerance is not None,
-                max_trials=max_trials is not None,
-                max_alpha_change=max_alpha_change is not None,
-                alpha_probe=alpha_probe is not None,
-                slope_damping=slope_damping != DEFAULT_SLOPE_DAMPING,
-            )
-            settings = None
-            start_alpha = to_dimensionless(alpha, "alpha")
-            default_tolerance = DEFAULT_MIDPOINT_TOLERANCE
-        tolerance = to_float(
-            default_tolerance if midpoint_tolerance is None else midpoint_tolerance,
-            unit.nanometers,
-            "midpoint_tolerance",
-            positive=True,
+        self._set_up(
+            timestep,
+            to_dimensionless(alpha, "alpha"),
+            constraint_tolerance,
+            DEFAULT_MIDPOINT_TOLERANCE if midpoint_tolerance is None else midpoint_tolerance,
+            max_midpoint_iterations,
+            order,
+            chosen,
+            settings=None,
         )
+
+    def _set_up(
+        self,
+        timestep: unit.Quantity | float,
+        start_alpha: float,
+        constraint_tolerance: float,
+        midpoint_tolerance: unit.Quantity | float,
+        max_midpoint_iterations: int,
+        order: int,
+        composition: Composition | None,
+        settings: ControllerSettings | None,
+    ) -> None:
+        """Check the shared options, declare the variables, add the program (``settings``: energy mode)."""
+        self._composition = composition
+        tolerance = to_float(midpoint_tolerance, unit.nanometers, "midpoint_tolerance", positive=True)
         max_iterations = positive_int(max_midpoint_iterations, "max_midpoint_iterations")
-        super().__init__(timestep, constraint_tolerance)
-        self._add_midpoint_variables(start_alpha, tolerance, max_iterations, order, chosen)
+        _StepProgram.__init__(self, timestep, constraint_tolerance)
+        self._add_midpoint_variables(start_alpha, tolerance, max_iterations, order, composition)
         self._add_program(settings)
-
-    def __new__(cls, *args: object, **kwargs: object) -> AlphaRattleIntegrator:
-        """``alpha="energy"`` makes an :class:`AlphaRattleEnergyIntegrator`."""
-        alpha = args[1] if len(args) > 1 else kwargs.get("alpha", 0.0)
-        if cls is AlphaRattleIntegrator and _is_energy_mode(alpha):  # type: ignore[arg-type]
-            from .energy_mode import AlphaRattleEnergyIntegrator
-
-            cls = AlphaRattleEnergyIntegrator
-        return super().__new__(cls)
 
     def _add_program(self, settings: ControllerSettings | None) -> None:
         """Add the fixed-α program, starting with the update-context-state step."""
@@ -393,14 +338,13 @@ class AlphaRattleIntegrator(_StepProgram):
         return int(self.getGlobalVariableByName("order"))
 
     def __repr__(self) -> str:
-        alpha = "'energy'" if self.energy_mode else self.alpha
         chosen = self.composition
-        extra = ""
+        extra = "" if self.energy_mode else f", alpha={self.alpha}"
         if chosen is not None:
             extra = f", composition={chosen.name!r}"
             if chosen.alpha_stages != chosen.with_alpha_on("middle").alpha_stages:
                 extra += f", alpha_stages={chosen.alpha_stages}"
-        return f"{type(self).__name__}(timestep={self.timestep}, alpha={alpha}{extra})"
+        return f"{type(self).__name__}(timestep={self.timestep}{extra})"
 
     def __getattr__(self, name: str) -> object:
         if name in _energy_mode_only_names():
@@ -427,38 +371,40 @@ def _order_and_composition(
     return chosen.order, chosen
 
 
-def _is_energy_mode(alpha: float | str) -> bool:
-    """Tell whether ``alpha`` asks for the energy mode; refuse any other string."""
-    if isinstance(alpha, str) and alpha != "energy":
-        raise InputError(f"alpha must be a number or 'energy', got {alpha!r}.")
-    return isinstance(alpha, str)
-
-
-def _refuse_energy_options(alpha: object, **given: bool) -> None:
-    """Refuse energy-mode options given with a fixed α, where they would do nothing."""
-    names = [name for name, was_given in given.items() if was_given]
-    if names:
-        raise InputError(
-            f"{', '.join(names)}: option(s) of the energy mode, given with a fixed alpha={alpha!r}, where "
-            "they do nothing. Pass alpha='energy' for the energy mode, or leave them out."
+def _energy_mode_refusal(alpha: str) -> str:
+    """Return the message for a string ``alpha``: the energy mode is its own class."""
+    if alpha == "energy":
+        return (
+            "alpha='energy' asks for the energy mode, which is its own class: use "
+            "AlphaRattleEnergyIntegrator(timestep, order=4, ...) (from openmm_alphaprk import "
+            "AlphaRattleEnergyIntegrator); AlphaRattleIntegrator takes a number."
         )
+    return f"alpha must be a number (the method parameter), got {alpha!r}."
 
 
 def _energy_mode_only(name: str) -> str:
     return (
         f"{name} exists only in the energy-preserving mode; create the integrator with "
-        "AlphaRattleIntegrator(timestep, alpha='energy')."
+        "AlphaRattleEnergyIntegrator(timestep, ...)."
     )
 
 
-@cache
 def _energy_mode_only_names() -> frozenset[str]:
-    """Return what the energy mode has and a fixed α has not: its public properties and methods."""
-    from .energy_mode import AlphaRattleEnergyIntegrator
+    """Return what the energy mode has and a fixed α has not: its public properties and methods.
 
+    The energy mode's class is found among this class's subclasses (it is defined in
+    :mod:`~.energy_mode`, which this module does not import).
+    """
+    subclasses, found = [AlphaRattleIntegrator], []
+    while subclasses:
+        cls = subclasses.pop()
+        subclasses.extend(cls.__subclasses__())
+        if cls.energy_mode:
+            found.append(cls)
     return frozenset(
         name
-        for cls in AlphaRattleEnergyIntegrator.__mro__
+        for energy_class in found
+        for cls in energy_class.__mro__
         if cls is not AlphaRattleIntegrator and not issubclass(AlphaRattleIntegrator, cls)
         for name in vars(cls)
         if not name.startswith("_") and name != "energy_mode"

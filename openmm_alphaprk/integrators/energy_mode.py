@@ -1,9 +1,9 @@
 """α-RATTLE's energy-preserving mode: its step programs and its controller, one room.
 
-:class:`AlphaRattleEnergyIntegrator` is made by ``AlphaRattleIntegrator(timestep,
-alpha="energy", ...)`` (:mod:`~.alpha_rattle`, where the parameters are documented). Its
-two programs, one α-RATTLE step or a composition of them, are the ``_build_*`` methods
-below; the controller's pieces follow them.
+:class:`AlphaRattleEnergyIntegrator` is a subclass of the fixed-α
+:class:`~.alpha_rattle.AlphaRattleIntegrator` whose programs choose α. Its two programs,
+one α-RATTLE step or a composition of them, are the ``_build_*`` methods below;
+the controller's pieces follow them.
 
 **The energy mode.** Each step chooses α so that the total energy after the step equals the reference
 energy E_ref, the energy of the state the run started from. The
@@ -67,18 +67,24 @@ from typing import ClassVar
 import openmm as mm
 import openmm.unit as unit
 
+from .._units import InputError
 from ..smooth_forces import NonSmoothForcesWarning, outside_stacklevel
-from .alpha_rattle import AlphaRattleIntegrator
+from .alpha_rattle import DEFAULT_MAX_MIDPOINT_ITERATIONS, AlphaRattleIntegrator, _order_and_composition
 from .compositions import Composition
 from .energy_settings import (
+    CONTROLLER_DEFAULTS,
+    DEFAULT_SLOPE_DAMPING,
     NON_PERIODIC_MIDPOINT_TOLERANCE,
     PREDICTOR_FORGETTING,
     PREDICTOR_WARMUP,
     ControllerSettings,
+    alpha_scale_of,
     check_alpha_bounds,
+    controller_settings,
 )
 from .pieces import (
     ACCEPTED_MIDPOINT_CHANGE,
+    DEFAULT_CONSTRAINT_TOLERANCE,
     _substep_h,
     first_forces,
     last_forces,
@@ -128,16 +134,147 @@ def _ar2_prediction(series: str) -> str:
 class AlphaRattleEnergyIntegrator(_ReferenceEnergy, AlphaRattleIntegrator):
     """α-RATTLE's energy-preserving mode: α chosen every step so that H stays at E_ref.
 
-    Its step program, as OpenMM runs it: :meth:`program_listing`, and docs/step_programs.md.
+    The method under study: measured against RATTLE + velocity rescaling
+    (:class:`~.rescale.RattleRescaleIntegrator`, ``order=4`` for a composition), it costs
+    more and tracks the dynamics less well everywhere measured (docs/energy_mode.md).
 
-    Made by ``AlphaRattleIntegrator(timestep, alpha="energy", ...)`` (the parameters
-    are documented there); this class adds what the mode has and a fixed α has not:
-    E_ref (taken and reset by the rule of :mod:`~.reference_energy`), H − E_ref, the
-    tolerance, the α bounds and the totals of the run. The controller is described in
-    the module's docstring.
+    Each step is a member of the α-RATTLE family whose α (on one stage of a composition)
+    the controller of this module's docstring chooses so that the total energy after the
+    step equals E_ref, the energy of the state the run started from (taken and reset by
+    the rule of :mod:`~.reference_energy`). Constraints and linear momentum are kept
+    exactly and angular momentum to the midpoint tolerance; symplecticity is given up.
+    The program runs NVE: it has no update-context-state step, so barostats, thermostats
+    and a ``CMMotionRemover`` do not act (:meth:`check_context` warns about them).
+    :meth:`program_listing` prints the program; docs/step_programs.md lists it.
+
+    Parameters
+    ----------
+    timestep : openmm.unit.Quantity or float
+        Step size (a time Quantity, or a number in picoseconds).
+    constraint_tolerance : float, default 1e-8
+        Relative constraint tolerance passed to ``setConstraintTolerance``.
+    midpoint_tolerance : openmm.unit.Quantity or float, optional
+        Stopping tolerance of the midpoint iteration (nm, RMS change of x1 per degree of
+        freedom). Default with a periodic box 1e-7 nm (order 2) or 1e-5 nm (a
+        composition, where α* is ~100× smaller): there it only limits how well angular
+        momentum is kept (ΔL ≈ 2hα δx_m × F per step), which a periodic box does not
+        conserve anyway, and the energy is measured on the state the step ends in;
+        without a periodic box 1e-13 nm, set by :meth:`check_context`, which keeps
+        angular momentum to round-off.
+    max_midpoint_iterations : int, default 20
+        Cap on midpoint force evaluations per step, summed over the trials.
+    alpha_bounds : tuple of (float, float), optional
+        The interval (low, high) α* is kept in; default (−0.5, 1.5) at order 2; on a
+        composition (−0.2, 0.2) × s, s = (1.702/|c_α|)³ the α stage's authority against
+        the triple jump's middle stage (:func:`~.energy_settings.alpha_scale_of`: 1 for
+        the triple jump, 17.3 for Suzuki's five stages).
+    energy_tolerance : openmm.unit.Quantity or float, optional
+        Target |H − E_ref| after each step (kJ/mol). Default: 3× the measured noise of
+        OpenMM's energy for the system's size and the platform's precision
+        (:func:`openmm_alphaprk.platforms.default_energy_tolerance`), set by
+        :meth:`check_context`; without it each ``step()`` call sets the single-precision
+        value. A target inside the noise only buys trials that chase round-off.
+    max_trials : int, optional
+        Trials per step that may change α (at least 2: only a second trial measures the
+        slope dH/dα). Default 3 at order 2, 4 on a composition.
+    max_alpha_change : float, optional
+        The largest change of α one secant update may make (default 1 at order 2,
+        0.05 × s on a composition).
+    alpha_probe : float, optional
+        The smallest first move of α in a step, so that the step measures its own slope
+        dH/dα (default 0.05 at order 2, 0.005 × s on a composition).
+    slope_damping : float, default 0.5
+        d in the damped secant step Δα = −r S/(S² + (d S̄)²), S̄ a running mean of the
+        measured slopes |S| (0 turns the damping off).
+    order : {2, 4, 6}, optional
+        2 (default): one α-RATTLE step, which cannot hold the energy of a real system
+        (docs/energy_mode.md); 4: Suzuki's five stages, α on the middle one, fourth
+        order since α* = O(h²); 6: McLachlan's nine stages.
+    composition : str or Composition, optional
+        A named composition (:data:`~.compositions.COMPOSITIONS`) or a
+        :class:`~.compositions.Composition`; sets the order.
+    alpha_stages : {"middle"} or tuple of int, optional
+        The one stage of a composition that carries α (default the middle one).
+
+    See Also
+    --------
+    RattleRescaleIntegrator : holds the energy at RATTLE's cost (the recommended way).
+    AlphaRattleIntegrator : the same family with a fixed α.
+
+    Examples
+    --------
+    ``energy4`` on a 2 nm water box shipped with the package (four steps: the controller
+    holds H − E_ref to its tolerance):
+
+    >>> import openmm, openmm.unit as unit
+    >>> from openmm_alphaprk import AlphaRattleEnergyIntegrator
+    >>> from openmm_alphaprk.systems import prepare_system
+    >>> water = prepare_system("tip3p-2nm")
+    >>> integrator = AlphaRattleEnergyIntegrator(2 * unit.femtoseconds, order=4)
+    >>> context = openmm.Context(water.system, integrator, openmm.Platform.getPlatformByName("CPU"))
+    >>> context.setState(water.state)
+    >>> integrator.check_context(context)  # the tolerances for this system and platform
+    >>> integrator.step(4)
+    >>> abs(integrator.energy_residual) < integrator.energy_tolerance
+    True
     """
 
     energy_mode: ClassVar[bool] = True
+
+    def __init__(
+        self,
+        timestep: unit.Quantity | float,
+        constraint_tolerance: float = DEFAULT_CONSTRAINT_TOLERANCE,
+        midpoint_tolerance: unit.Quantity | float | None = None,
+        max_midpoint_iterations: int = DEFAULT_MAX_MIDPOINT_ITERATIONS,
+        *,
+        alpha_bounds: tuple[float, float] | None = None,
+        energy_tolerance: unit.Quantity | float | None = None,
+        max_trials: int | None = None,
+        max_alpha_change: float | None = None,
+        alpha_probe: float | None = None,
+        slope_damping: float = DEFAULT_SLOPE_DAMPING,
+        order: int | None = None,
+        composition: str | Composition | None = None,
+        alpha_stages: str | tuple[int, ...] | None = None,
+    ) -> None:
+        if isinstance(constraint_tolerance, str):
+            raise InputError(
+                f"AlphaRattleEnergyIntegrator takes no alpha (got {constraint_tolerance!r} where the "
+                "constraint tolerance goes): the controller chooses it. Use "
+                "AlphaRattleEnergyIntegrator(timestep, order=4)."
+            )
+        order, chosen = _order_and_composition(order, composition, alpha_stages)
+        if chosen is not None and len(chosen.alpha_stages) != 1:
+            raise InputError(
+                "the energy mode takes alpha on one stage of a composition, got stages "
+                f"{chosen.alpha_stages} of {chosen.name!r}; use alpha_stages='middle' or one stage "
+                "number, or AlphaRattleIntegrator with a fixed alpha."
+            )
+        controls = 2 if chosen is None else 4  # the controller's defaults: one step, or a composition
+        settings = controller_settings(
+            controls,
+            alpha_bounds,
+            energy_tolerance,
+            max_trials,
+            max_alpha_change,
+            alpha_probe,
+            slope_damping,
+            automatic_midpoint_tolerance=midpoint_tolerance is None,
+            alpha_scale=1.0 if chosen is None else alpha_scale_of(chosen),
+        )
+        low, high = settings.alpha_bounds
+        default_tolerance = CONTROLLER_DEFAULTS[controls].midpoint_tolerance
+        self._set_up(
+            timestep,
+            min(max(0.0, low), high),
+            constraint_tolerance,
+            default_tolerance if midpoint_tolerance is None else midpoint_tolerance,
+            max_midpoint_iterations,
+            order,
+            chosen,
+            settings,
+        )
 
     def _add_program(self, settings: ControllerSettings | None) -> None:
         """Add the controller's variables and the energy-mode program (NVE: no update step)."""

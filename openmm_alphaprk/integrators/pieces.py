@@ -77,6 +77,7 @@ import openmm.unit as unit
 
 from .. import platforms, start_blowup
 from .._units import InputError, to_dimensionless, to_float
+from ..smooth_forces import outside_stacklevel
 from .compositions import COMPOSITIONS, Composition
 from .variables import (
     ALPHA,
@@ -819,7 +820,7 @@ def _warn_if_plain_step_is_large(timestep: object, step_ps: float) -> None:
             f"{step_ps * 1000:g} fs, far above the 1-4 fs of constrained MD (the run will blow up). "
             "For 2 fs pass 2 * unit.femtoseconds or 0.002."
         ),
-        stacklevel=4,  # this function, _StepProgram.__init__, the integrator's __init__, the caller
+        stacklevel=outside_stacklevel() + 1,  # the user's call that made the integrator
     )
 
 

@@ -17,8 +17,8 @@ Names (:data:`VOCABULARY`, in the order ``--help`` lists them):
     :class:`~openmm_alphaprk.AlphaRattleIntegrator` with that fixed α; fractions
     are accepted (``alpha=1/6``). ``alpha=0`` is RATTLE.
 ``energy``
-    :class:`~openmm_alphaprk.AlphaRattleIntegrator` in the energy-preserving mode
-    (``alpha="energy"``: α chosen every step so that H stays at E_ref).
+    :class:`~openmm_alphaprk.AlphaRattleEnergyIntegrator`, the energy-preserving mode
+    (α chosen every step so that H stays at E_ref).
 ``alpha4=<number>``
     α-RATTLE-4 (``order=4``: Suzuki's five-stage composition with α on the middle
     stage) with that fixed α; ``alpha4=0`` is its composition of RATTLE steps (fourth
@@ -52,6 +52,7 @@ import openmm.unit as unit
 
 from .._units import InputError
 from ..integrators import (
+    AlphaRattleEnergyIntegrator,
     AlphaRattleIntegrator,
     IncompatibleSystemError,
     RattleIntegrator,
@@ -117,7 +118,7 @@ VOCABULARY = (
         "energy",
         "energy",
         2,
-        "AlphaRattleIntegrator(alpha='energy'), alpha chosen per step to hold H at E_ref "
+        "AlphaRattleEnergyIntegrator(h), alpha chosen per step to hold H at E_ref "
         "(a midpoint and an end force per trial of alpha, more where the midpoint iteration needs "
         "them; the run's table gives the measured evaluations/step)",
     ),
@@ -300,9 +301,8 @@ def make_integrator(
             composition=spec.composition,
         )
     if spec.kind == "energy":
-        return AlphaRattleIntegrator(
+        return AlphaRattleEnergyIntegrator(
             timestep,
-            alpha="energy",
             constraint_tolerance=constraint_tolerance,
             order=spec.order,
             composition=spec.composition,

@@ -77,7 +77,7 @@ class AlphaControllerReporter:
     ------
     TypeError
         From ``report``, if the simulation's integrator is not an
-        :class:`~openmm_alphaprk.AlphaRattleIntegrator` in the energy mode.
+        :class:`~openmm_alphaprk.AlphaRattleEnergyIntegrator` (the energy mode).
     ValueError
         From ``report``, if the residual is not finite (fail fast on NaN).
     """
@@ -118,8 +118,8 @@ class AlphaControllerReporter:
             integrator = simulation.integrator
         if not isinstance(integrator, AlphaRattleEnergyIntegrator):
             raise InputTypeError(
-                "AlphaControllerReporter needs an AlphaRattleIntegrator in the energy mode "
-                "(alpha='energy'); use openmm.app.StateDataReporter for other integrators."
+                "AlphaControllerReporter needs an AlphaRattleEnergyIntegrator (the energy mode); "
+                "use openmm.app.StateDataReporter for other integrators."
             )
         names = [integrator.getGlobalVariableName(i) for i in range(integrator.getNumGlobalVariables())]
         self._integrator = integrator

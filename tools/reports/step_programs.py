@@ -13,7 +13,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from openmm_alphaprk import AlphaRattleIntegrator, RattleIntegrator, RattleRescaleIntegrator
+from openmm_alphaprk import (
+    AlphaRattleEnergyIntegrator,
+    AlphaRattleIntegrator,
+    RattleIntegrator,
+    RattleRescaleIntegrator,
+)
 
 PAGE = Path(__file__).resolve().parents[2] / "docs" / "step_programs.md"
 
@@ -26,10 +31,8 @@ PROGRAMS = {
     "AlphaRattleIntegrator(h, alpha, composition='triple-jump')": lambda: AlphaRattleIntegrator(
         0.002, 0.01, composition="triple-jump"
     ),
-    "AlphaRattleIntegrator(h, alpha='energy')": lambda: AlphaRattleIntegrator(0.002, "energy"),
-    "AlphaRattleIntegrator(h, alpha='energy', order=4)": lambda: AlphaRattleIntegrator(
-        0.002, "energy", order=4
-    ),
+    "AlphaRattleEnergyIntegrator(h)": lambda: AlphaRattleEnergyIntegrator(0.002),
+    "AlphaRattleEnergyIntegrator(h, order=4)": lambda: AlphaRattleEnergyIntegrator(0.002, order=4),
 }
 
 

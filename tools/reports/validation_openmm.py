@@ -123,9 +123,9 @@ def _tight_midpoint_run(prepared, n_steps: int, interval: int) -> dict:
     import openmm as mm
     import openmm.app as app
 
-    from openmm_alphaprk import AlphaRattleIntegrator
+    from openmm_alphaprk import AlphaRattleEnergyIntegrator
 
-    integrator = AlphaRattleIntegrator(0.002, "energy", constraint_tolerance=1e-8, midpoint_tolerance=1e-12)
+    integrator = AlphaRattleEnergyIntegrator(0.002, constraint_tolerance=1e-8, midpoint_tolerance=1e-12)
     simulation = app.Simulation(
         prepared.topology, prepared.system, integrator, mm.Platform.getPlatformByName("Reference")
     )
