@@ -10,7 +10,7 @@ from pathlib import Path
 from openmm_alphaprk import AlphaRattleIntegrator, RattleIntegrator
 from openmm_alphaprk.runs.integrator_names import parse_integrator
 from openmm_alphaprk.workflows.comparison import DEFAULT_INTEGRATORS
-from tools.reports import sources
+from tools.reports import guide, sources
 
 ROOT = Path(__file__).resolve().parents[1]
 #: The README and every Markdown page of the documentation (docs/ and its folders; not the built site).
@@ -75,6 +75,17 @@ def test_the_tracker_pattern_catches_every_spelling():
         assert TRACKER.search(text), text
     for text in ("it issues a warning", "C# 4", "&#8212;"):
         assert not TRACKER.search(text), text
+
+
+def test_the_readme_and_the_user_guide_numbers_are_the_datas():
+    """The README's "which integrator" table and the user guide's measured blocks are what
+    ``python -m tools.reports.guide`` renders from docs/data/ (run it after new measurements)."""
+    assert guide.differences() == []
+    pages = guide.render()
+    assert {page.name for page in pages} >= {"README.md", "integrators.md", "energy_mode.md", "platforms.md"}
+    for blocks in pages.values():
+        for text in blocks.values():
+            assert re.search(r"20\d\d-\d\d-\d\d", text), "every generated block says when it was measured"
 
 
 def test_no_page_refers_to_tracker_issues():

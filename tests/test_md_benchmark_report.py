@@ -7,8 +7,10 @@ import json
 import numpy as np
 import pytest
 
-from tools.reports.markdown import replace_generated
+from tools.reports.markdown import page_tables, read_blocks, replace_generated
+from tools.reports.md_benchmark import render_page
 from tools.reports.md_benchmark_analysis import compare_dynamics
+from tools.reports.md_benchmark_results import JSON_OUT, PAGE
 from tools.reports.md_benchmark_tables import scan_markdown, scan_table
 
 
@@ -93,3 +95,15 @@ def test_dynamics_comparison():
     assert diff["rdf_rms_difference"] == pytest.approx(0.1)
     assert diff["diffusion_relative_difference"] == pytest.approx(0.1)
     assert diff["libration_centroid_shift"] == pytest.approx(5.0)
+
+
+def test_page_tables_are_the_ones_rendered_from_the_json():
+    """docs/benchmarks.md's generated tables are what the report renders from its JSON."""
+    report = json.loads(JSON_OUT.read_text(encoding="utf-8"))
+    on_page = page_tables(PAGE)
+    rendered = read_blocks(render_page(PAGE.read_text(encoding="utf-8"), report))
+    assert set(on_page) == set(rendered) and len(on_page) == 8
+    for name, table in rendered.items():
+        assert on_page[name] == table, f"table {name!r} of docs/benchmarks.md is not the JSON's"
+    for figure in report["figures"]:
+        assert (PAGE.parent / figure).is_file()

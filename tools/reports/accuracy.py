@@ -1,6 +1,7 @@
 r"""The tables of docs/accuracy.md from the JSON of ``alphaprk bench accuracy``.
 
-Run from the repository root, after the benchmark wrote ``docs/data/accuracy/accuracy_benchmark_SYSTEM.json``::
+Run from the repository root, after the benchmark wrote
+``docs/data/accuracy/accuracy_benchmark_SYSTEM.json``::
 
     python -m tools.reports.accuracy
 

@@ -1,7 +1,8 @@
 r"""The tables of docs/compositions.md from the JSON of ``alphaprk bench accuracy``.
 
-Run from the repository root, after the benchmarks wrote ``docs/data/compositions/compositions_accuracy_2fs*.json``
-and ``docs/data/compositions/compositions_accuracy_4fs*.json`` (one or more files per step)::
+Run from the repository root, after the benchmarks wrote
+``docs/data/compositions/compositions_accuracy_2fs*.json`` and
+``docs/data/compositions/compositions_accuracy_4fs*.json`` (one or more files per step)::
 
     python -m tools.reports.compositions
 

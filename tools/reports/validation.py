@@ -100,7 +100,9 @@ def build_parser() -> argparse.ArgumentParser:
     """Return the command line's parser."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true", help="small runs, to check the script")
-    parser.add_argument("--json", type=Path, help="output JSON (default docs/data/validation/validation.json)")
+    parser.add_argument(
+        "--json", type=Path, help="output JSON (default docs/data/validation/validation.json)"
+    )
     parser.add_argument("--figures", type=Path, help="figure folder (default docs/figures)")
     parser.add_argument(
         "--page", type=Path, help="page whose tables are rewritten (default docs/validation.md)"

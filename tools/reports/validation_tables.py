@@ -1,4 +1,4 @@
-"""The generated tables of docs/validation.md, rendered from the JSON data (docs/data/validation/validation.json)."""
+"""The generated tables of docs/validation.md, rendered from docs/data/validation/validation.json."""
 
 from __future__ import annotations
 
