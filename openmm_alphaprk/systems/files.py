@@ -19,6 +19,7 @@ FileOptions, file_definition``), where the user's files are.
 from __future__ import annotations
 
 import hashlib
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -84,14 +85,18 @@ def load_files(definition: SystemDefinition) -> LoadedFiles:
     Raises
     ------
     DefinitionError
-        For files that disagree in atom count, a periodic system without a box, or a
-        file a reader rejects (its message included).
+        For a file a reader rejects (one of another format, or cut short: the message
+        names the file, the format it must be in and the reader's own message), files
+        that disagree in atom count, a periodic system without a box, or a System the
+        reader cannot make from them.
     """
     build = definition.build
     reader = _READERS[build["kind"]]
     try:
         topology, system, positions, velocities = reader(definition.name, build)
-    except (ValueError, KeyError, IndexError, mm.OpenMMException) as error:
+    except DefinitionError:
+        raise  # a file a reader rejected, named with the format it must be in
+    except (ValueError, KeyError, IndexError, mm.OpenMMException) as error:  # making the System
         raise DefinitionError(
             f"system {definition.name!r}: reading {build['files']['system']} failed: {error}"
         ) from None
@@ -200,10 +205,34 @@ def _box_vectors(name: str, build: dict[str, Any], from_file, where: str):
     )
 
 
+def _parsed(name: str, path: str | Path, expected: str, read: Callable[[], Any], *, fix: str, of: str = ""):
+    """Return ``read()`` (an OpenMM reader of ``path``); a file it rejects is refused as not ``expected``.
+
+    OpenMM's readers fail on a file of another format, or one cut short, with whatever
+    their parsing meets (``IndexError``, ``TypeError``, a bare ``Exception``): the
+    message names the file, the format it must be in (``expected``, ``of`` what it
+    must be the coordinates of), the reader's own words and the ``fix``.
+    """
+    try:
+        return read()
+    except Exception as error:  # noqa: BLE001 - whatever a parser raises, the file is not what it reads
+        said = " ".join(str(error).split()).rstrip(".") or type(error).__name__
+        if len(said) > 200:
+            said = said[:200] + "…"
+        raise DefinitionError(
+            f"system {name!r}: {Path(path).name}: not {expected}{of}, or cut short "
+            f"(OpenMM's reader: {said}); give {fix}."
+        ) from None
+
+
+def _atoms_of(topology: app.Topology, path: str | Path) -> str:
+    return f" for the {topology.getNumAtoms():,} atoms of {Path(path).name}"
+
+
 def _read_amber(name: str, build: dict[str, Any]):
     files = build["files"]
-    prmtop = app.AmberPrmtopFile(files["system"])
-    inpcrd = app.AmberInpcrdFile(files["coordinates"])
+    prmtop = _read_prmtop(name, files["system"])
+    inpcrd = _read_inpcrd(name, files["coordinates"], _atoms_of(prmtop.topology, files["system"]))
     periodic = prmtop.topology.getPeriodicBoxVectors() is not None or inpcrd.boxVectors is not None
     if periodic:
         box = _box_vectors(name, build, inpcrd.boxVectors, Path(files["coordinates"]).name)
@@ -215,54 +244,129 @@ def _read_amber(name: str, build: dict[str, Any]):
     return prmtop.topology, system, _nm(inpcrd.positions), velocities
 
 
+def _read_prmtop(name: str, path: str) -> app.AmberPrmtopFile:
+    return _parsed(
+        name,
+        path,
+        "an AMBER topology file (.prmtop/.parm7)",
+        lambda: app.AmberPrmtopFile(path),
+        fix="the system as an AMBER .prmtop/.parm7 file (tleap's or ParmEd's)",
+    )
+
+
+def _read_inpcrd(name: str, path: str, of: str = "") -> app.AmberInpcrdFile:
+    return _parsed(
+        name,
+        path,
+        "an AMBER coordinate file (.inpcrd/.rst7/.ncrst)",
+        lambda: app.AmberInpcrdFile(path),
+        fix="this topology's coordinates, complete, with --coordinates FILE.inpcrd (or .rst7)",
+        of=of,
+    )
+
+
 def _read_charmm(name: str, build: dict[str, Any]):
     files = build["files"]
-    psf = app.CharmmPsfFile(files["system"])
-    coordinates = files["coordinates"]
+    psf = _parsed(
+        name,
+        files["system"],
+        "a CHARMM PSF file (.psf)",
+        lambda: app.CharmmPsfFile(files["system"]),
+        fix="the system as a CHARMM .psf file",
+    )
+    coordinates, of = files["coordinates"], _atoms_of(psf.topology, files["system"])
+    fix = "this PSF's coordinates, complete, with --coordinates FILE.crd (or .pdb)"
     if coordinates.lower().endswith(".pdb"):
-        pdb = app.PDBFile(coordinates)
+        pdb = _parsed(
+            name, coordinates, "a PDB file (.pdb)", lambda: app.PDBFile(coordinates), fix=fix, of=of
+        )
         positions, from_file = pdb.positions, pdb.topology.getPeriodicBoxVectors()
     else:
-        positions, from_file = app.CharmmCrdFile(coordinates).positions, None
+        crd = _parsed(
+            name,
+            coordinates,
+            "a CHARMM coordinate file (.crd)",
+            lambda: app.CharmmCrdFile(coordinates),
+            fix=fix,
+            of=of,
+        )
+        positions, from_file = crd.positions, None
     box = _box_vectors(name, build, from_file, Path(coordinates).name)
     lengths = [box[i][i].value_in_unit(unit.nanometers) for i in range(3)]
     psf.setBox(*(length * unit.nanometers for length in lengths))
-    params = app.CharmmParameterSet(*files["params"])
+    params = _parsed(
+        name,
+        ", ".join(Path(p).name for p in files["params"]),
+        "CHARMM parameter and topology files (.prm/.par, .rtf/.top, .str, told apart by extension)",
+        lambda: app.CharmmParameterSet(*files["params"]),
+        fix="the force field's files with --params FILE.prm FILE.rtf (or .str)",
+    )
     system = psf.createSystem(params, **_create_kwargs(build, True))
     return psf.topology, system, _nm(positions), None
 
 
 def _read_gromacs(name: str, build: dict[str, Any]):
     files = build["files"]
-    gro = app.GromacsGroFile(files["coordinates"])
+    kwargs = {"includeDir": files["include_dir"]} if files.get("include_dir") else {}
+    top = _parsed(
+        name,
+        files["system"],
+        "a GROMACS topology file (.top)",
+        lambda: app.GromacsTopFile(files["system"], **kwargs),
+        fix="the system as a GROMACS .top file, with --include-dir where its #include files are",
+    )
+    gro = _parsed(
+        name,
+        files["coordinates"],
+        "a GROMACS coordinate file (.gro)",
+        lambda: app.GromacsGroFile(files["coordinates"]),
+        fix="this topology's coordinates, complete, with --coordinates FILE.gro",
+        of=_atoms_of(top.topology, files["system"]),
+    )
     box = _box_vectors(name, build, gro.getPeriodicBoxVectors(), Path(files["coordinates"]).name)
-    kwargs = {"periodicBoxVectors": box}
-    if files.get("include_dir"):
-        kwargs["includeDir"] = files["include_dir"]
-    top = app.GromacsTopFile(files["system"], **kwargs)
+    top.topology.setPeriodicBoxVectors(box)
     system = top.createSystem(**_create_kwargs(build, True))
     return top.topology, system, _nm(gro.positions), None
 
 
 def _read_pdb(name: str, build: dict[str, Any]):
     path = build["files"]["system"]
-    structure = app.PDBxFile(path) if Path(path).suffix.lower() in (".cif", ".pdbx") else app.PDBFile(path)
+    if Path(path).suffix.lower() in (".cif", ".pdbx"):
+        expected, read = "a PDBx/mmCIF file (.cif/.pdbx)", app.PDBxFile
+    else:
+        expected, read = "a PDB file (.pdb)", app.PDBFile
+    structure = _parsed(
+        name, path, expected, lambda: read(path), fix="the system as a PDB (.pdb) or PDBx/mmCIF (.cif) file"
+    )
     topology = structure.topology
     box = _box_vectors(name, build, topology.getPeriodicBoxVectors(), Path(path).name)
     topology.setPeriodicBoxVectors(box)
-    forcefield = app.ForceField(*build["forcefield"])
+    forcefield = _parsed(
+        name,
+        " ".join(build["forcefield"]),
+        "OpenMM force-field XML files",
+        lambda: app.ForceField(*build["forcefield"]),
+        fix="OpenMM's force-field names or paths of your XMLs, e.g. --forcefield amber14-all.xml "
+        "amber14/tip3p.xml",
+    )
     system = forcefield.createSystem(topology, **_create_kwargs(build, True))
     return topology, system, _nm(structure.positions), None
 
 
 def _read_openmm_xml(name: str, build: dict[str, Any]):
     files = build["files"]
-    system = mm.XmlSerializer.deserialize(Path(files["system"]).read_text(encoding="utf-8"))
-    state = mm.XmlSerializer.deserialize(Path(files["state"]).read_text(encoding="utf-8"))
-    if not isinstance(system, mm.System) or not isinstance(state, mm.State):
-        raise DefinitionError(
-            f"system {name!r}: {files['system']} must hold a serialized System and {files['state']} a State."
-        )
+    system = _parsed(
+        name,
+        files["system"],
+        "a serialized OpenMM System (XmlSerializer XML)",
+        lambda: _deserialized(files["system"], mm.System),
+        fix="the System as openmm.XmlSerializer.serialize(system) writes it",
+    )
+    state = _read_state(
+        name,
+        files["state"],
+        f" for the {system.getNumParticles():,} particles of {Path(files['system']).name}",
+    )
     positions = _nm(state.getPositions())
     try:
         velocities = _nm_per_ps(state.getVelocities())
@@ -271,13 +375,40 @@ def _read_openmm_xml(name: str, build: dict[str, Any]):
     if system.usesPeriodicBoundaryConditions():
         box = state.getPeriodicBoxVectors()
         system.setDefaultPeriodicBoxVectors(*box)
-    topology = (
-        app.PDBFile(files["topology"]).topology if "topology" in files else _topology_from_masses(system)
-    )
+    if "topology" in files:
+        topology = _parsed(
+            name,
+            files["topology"],
+            "a PDB file (.pdb)",
+            lambda: app.PDBFile(files["topology"]),
+            fix="this System's topology as a PDB file with --topology (or none: one is made from the masses)",
+        ).topology
+    else:
+        topology = _topology_from_masses(system)
     if system.usesPeriodicBoundaryConditions():
         vectors = system.getDefaultPeriodicBoxVectors()
         topology.setPeriodicBoxVectors([v.value_in_unit(unit.nanometers) for v in vectors] * unit.nanometers)
     return topology, system, positions, velocities
+
+
+def _read_state(name: str, path: str, of: str = "") -> mm.State:
+    return _parsed(
+        name,
+        path,
+        "a serialized OpenMM State (XmlSerializer XML)",
+        lambda: _deserialized(path, mm.State),
+        fix="the State as openmm.XmlSerializer.serialize(context.getState(getPositions=True, "
+        "getVelocities=True)) writes it, with --state",
+        of=of,
+    )
+
+
+def _deserialized(path: str, kind: type):
+    """Return the object serialized in ``path``; TypeError if it is not a ``kind``."""
+    found = mm.XmlSerializer.deserialize(Path(path).read_text(encoding="utf-8"))
+    if not isinstance(found, kind):
+        raise TypeError(f"it holds a serialized {type(found).__name__}")
+    return found
 
 
 _READERS = {
