@@ -2,7 +2,8 @@
 
 When a run goes to NaN within its first :data:`START_STEPS` steps, the cause is almost
 always the start, not the integrator's long-run stability: an unminimized structure,
-velocities far too hot, or a step larger than the method takes. OpenMM's own message
+velocities far too hot, or a step larger than the method takes; with a fixed |α| beyond
+:data:`USUAL_ALPHA`, the α is named first. OpenMM's own message
 ("Particle coordinate is NaN") names none of these, and the Reference platform raises
 nothing at all. :func:`take_steps` runs a step program's steps, checks the first ones
 and raises :class:`StartBlowUpError` with the causes instead.
@@ -17,10 +18,12 @@ import numpy as np
 import openmm as mm
 import openmm.unit as unit
 
-__all__ = ["START_STEPS", "StartBlowUpError", "take_steps"]
+__all__ = ["START_STEPS", "USUAL_ALPHA", "StartBlowUpError", "take_steps"]
 
 #: Steps from an integrator's first during which a NaN is reported as a bad start.
 START_STEPS = 100
+#: Beyond this |α| a fixed α is named as the first cause of a blow-up at the start.
+USUAL_ALPHA = 1.0
 
 _NON_FINITE = re.compile(r"\bnan\b|\binfinite\b|non-finite|\binf\b", re.IGNORECASE)
 
@@ -101,11 +104,44 @@ def _message(integrator: mm.CustomIntegrator, original: str) -> str:
             "bonds to hydrogen (SETTLE, HBonds), about 1 fs without, about 4 fs with hydrogen masses "
             "repartitioned to 3–4 amu (--hydrogen-mass 3)"
         )
-    return (
-        f"{name} blew up in its first {START_STEPS} steps, which points at the start rather than at "
-        "the method. Likely causes: (1) an unminimized start: run openmm.LocalEnergyMinimizer.minimize "
+    start_causes = (
+        "an unminimized start: run openmm.LocalEnergyMinimizer.minimize "
         "(simulation.minimizeEnergy()) and equilibrate (e.g. with LangevinMiddleIntegrator) before "
-        "the NVE run; (2) too hot a start: velocities far above the intended temperature "
-        "(context.setVelocitiesToTemperature); (3) "
-        f"{large}. {original}"
+        "the NVE run",
+        "too hot a start: velocities far above the intended temperature (context.setVelocitiesToTemperature)",
+        large,
     )
+    alpha = _unusual_alpha(integrator)
+    if alpha is None:
+        head = f"{name} blew up in its first {START_STEPS} steps, which points at the start rather than at "
+        head += "the method"
+        causes = start_causes
+    else:
+        head = (
+            f"{name} blew up in its first {START_STEPS} steps with alpha={alpha:g} at a {step_fs:g} fs "
+            f"step, outside |alpha| <= {USUAL_ALPHA:g} where α-RATTLE is meant to be used: the α is the "
+            "first suspect, then the start"
+        )
+        causes = (
+            "the α: α-RATTLE weighs the force along a step by (1/2 - α, 2α, 1/2 - α), large and of "
+            "opposite sign beyond |α| = 1; the step it can take shrinks as 1/sqrt(|α|), its midpoint "
+            "iteration converging only while |α|h²ω²/4 < 1 (ω: the fastest motion); use alpha between "
+            f"-{USUAL_ALPHA:g} and {USUAL_ALPHA:g} (alpha=0 is RATTLE; the energy mode, 'energy', "
+            "chooses α every step)",
+            *start_causes,
+        )
+    listed = "; ".join(f"({i}) {cause}" for i, cause in enumerate(causes, start=1))
+    return f"{head}. Likely causes: {listed}. {original}"
+
+
+def _unusual_alpha(integrator: mm.CustomIntegrator) -> float | None:
+    """Return the fixed α of an α-RATTLE integrator if |α| > :data:`USUAL_ALPHA`, else None.
+
+    The energy mode's α is its controller's choice (kept within its bounds), not the user's.
+    """
+    if getattr(integrator, "energy_mode", False):
+        return None
+    alpha = getattr(integrator, "alpha", None)
+    if alpha is None or not abs(alpha) > USUAL_ALPHA:
+        return None
+    return float(alpha)

@@ -161,3 +161,12 @@ def test_every_reader_says_what_kind_of_file_it_expected(case, tmp_path, capsys)
     err = _refused([argv[0], "verlet", *argv[1:]], tmp_path, capsys)
     assert f": {named}: not {expected}" in err
     assert "(OpenMM's reader: " in err and "; give " in err
+
+
+def test_an_absurd_alpha_is_named_as_the_cause_of_the_blow_up(tmp_path, capsys):
+    """alpha=1e9 stopped with "... which points at the start"; it points at the α."""
+    status, err = _run(["water-cluster", "alpha=1e9"], tmp_path, capsys)
+    assert status == 1 and "Traceback" not in err
+    assert "blew up in its first 100 steps with alpha=1e+09 at a 2 fs step, outside |alpha| <= 1" in err
+    assert "Likely causes: (1) the α:" in err and "use alpha between -1 and 1" in err
+    assert "points at the start" not in err
