@@ -8,12 +8,15 @@ the shipped ones (tests/data/files).
 
 from __future__ import annotations
 
+import re
 import shutil
 from pathlib import Path
 
 import pytest
 
-from openmm_alphaprk.cli import main
+from openmm_alphaprk.cli import build_parser, main
+from openmm_alphaprk.systems import DefinitionError, load_definition
+from openmm_alphaprk.systems.arguments import system_to_prepare
 
 FILES = Path(__file__).parent / "data" / "files"
 PRMTOP = FILES / "peptide.prmtop"
@@ -170,3 +173,65 @@ def test_an_absurd_alpha_is_named_as_the_cause_of_the_blow_up(tmp_path, capsys):
     assert "blew up in its first 100 steps with alpha=1e+09 at a 2 fs step, outside |alpha| <= 1" in err
     assert "Likely causes: (1) the α:" in err and "use alpha between -1 and 1" in err
     assert "points at the start" not in err
+
+
+@pytest.mark.parametrize("kelvin", ["-300", "0"])
+def test_a_temperature_not_above_zero_kelvin_is_refused(kelvin, tmp_path, capsys):
+    err = _refused([PRMTOP, "rattle", "--temperature", kelvin], tmp_path, capsys)
+    assert f"--temperature {kelvin} K: a temperature must be above 0 K" in err
+
+
+def test_a_temperature_below_zero_in_a_definition_file_is_refused(tmp_path):
+    toml = tmp_path / "mine.toml"
+    toml.write_text(
+        f'[build]\nkind = "amber"\nfiles = {{ system = "{PRMTOP}", coordinates = "{INPCRD}" }}\n'
+        "[equilibration]\nseed = 1\ntemperature_K = -300.0\nminimize_tolerance_kJ_per_mol_nm = 10.0\n"
+        "minimize_max_iterations = 0\nlangevin_steps = 0\nlangevin_timestep_fs = 2.0\n"
+        'langevin_friction_per_ps = 1.0\nplatform = "CPU"\n',
+        encoding="utf-8",
+    )
+    with pytest.raises(DefinitionError, match="equilibration.temperature_K must be positive"):
+        load_definition(str(toml))
+
+
+def test_a_temperature_the_start_would_ignore_is_refused_saying_how_to_get_new_velocities(tmp_path, capsys):
+    """The restart's velocities are kept: --temperature would change nothing, silently."""
+    restart = ["--coordinates", FILES / "peptide_vel.rst7"]
+    err = _refused([PRMTOP, "rattle", *restart, "--temperature", "350"], tmp_path, capsys)
+    assert "--temperature 350 K would be ignored: peptide_vel.rst7 carries velocities" in err
+    assert "add --equilibrate TIME" in err and "--coordinates FILE.inpcrd without velocities" in err
+    err = _refused(
+        [
+            FILES / "tip4pew_system.xml",
+            "verlet",
+            "--state",
+            FILES / "tip4pew_state.xml",
+            "--temperature",
+            "350",
+        ],
+        tmp_path,
+        capsys,
+    )
+    assert "tip4pew_state.xml carries velocities" in err and "--state STATE.xml without velocities" in err
+    # a named system starts from its definition's state, velocities included
+    err = _refused(["tip3p-2nm", "rattle", "--temperature", "300"], tmp_path, capsys)
+    assert "--temperature 300 K does not apply to 'tip3p-2nm'" in err
+    assert re.search(r"run a copy of .*tip3p-2nm\.toml with another equilibration\.temperature_K", err)
+
+
+def test_a_temperature_is_used_where_velocities_are_drawn_at_it():
+    parser = build_parser()
+
+    def definition(*argv):
+        args = parser.parse_args(["run", str(argv[0]), "rattle", *map(str, argv[1:])])
+        return system_to_prepare(args.system, args)
+
+    assert (
+        definition(PRMTOP, "--temperature", "350").equilibration["temperature_K"] == 350
+    )  # none in the file
+    drawn = definition(PRMTOP, "--coordinates", FILES / "peptide_vel.rst7", "--temperature", "350",
+                       "--equilibrate", "10fs")  # fmt: skip
+    assert drawn.equilibration["temperature_K"] == 350 and drawn.equilibration["langevin_steps"] == 5
+    assert (
+        definition(PRMTOP, "--coordinates", FILES / "peptide_vel.rst7").equilibration["temperature_K"] == 300
+    )

@@ -94,8 +94,8 @@ def _system(args, specs) -> tuple[str, object]:
 
     A system given as files is read and made ready for NVE here; what changed is printed.
     """
-    from ..systems.arguments import file_options, given_file_options
-    from ..systems.files import file_definition, is_system_file
+    from ..systems.arguments import check_temperature, given_file_options, system_to_prepare
+    from ..systems.files import is_system_file
 
     if not is_system_file(args.system):
         given = given_file_options(args)
@@ -104,9 +104,10 @@ def _system(args, specs) -> tuple[str, object]:
                 f"{' '.join(given)} apply to a system given as files (.prmtop, .psf, .top, .pdb, .cif, "
                 f".xml), not to {args.system!r}."
             )
+        check_temperature(args.system, args)
         system = _prepare(args.system, args, rebuild=True, specs=specs) if args.rebuild else args.system
         return str(args.system).removesuffix(".toml").rpartition("/")[2], system
-    definition = file_definition(args.system, file_options(args))
+    definition = system_to_prepare(args.system, args)
     prepared = _prepare(definition, args, rebuild=args.rebuild, specs=specs)
     print(_changes_text(prepared, args.as_is))
     return prepared.name, prepared

@@ -7,10 +7,11 @@ The library side (:class:`~openmm_alphaprk.systems.files.FileOptions` and the re
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 from .._units import parse_time
-from .definitions import SystemDefinition, list_systems
-from .files import CONSTRAINT_CHOICES, FileOptions, file_definition, is_system_file
+from .definitions import DEFINITIONS_DIR, DefinitionError, SystemDefinition, list_systems, load_definition
+from .files import CONSTRAINT_CHOICES, FileOptions, file_definition, is_system_file, velocities_file
 
 
 def add_file_arguments(parser: argparse.ArgumentParser) -> None:
@@ -73,8 +74,9 @@ def add_file_arguments(parser: argparse.ArgumentParser) -> None:
     option(
         "--temperature",
         type=float,
-        default=FileOptions.temperature_K,
-        help=f"K: velocities drawn where the files have none (default {FileOptions.temperature_K:g})",
+        default=None,
+        help=f"K: velocities drawn where the files have none (default {FileOptions.temperature_K:g}); "
+        "refused where the start's velocities come from the files",
     )
     option(
         "--seed", type=int, default=FileOptions.seed, help="seed of the drawn velocities and equilibration"
@@ -109,7 +111,7 @@ def file_options(args: argparse.Namespace) -> FileOptions:
         constraints=args.constraints,
         hydrogen_mass_amu=args.hydrogen_mass,
         as_is=args.as_is,
-        temperature_K=args.temperature,
+        temperature_K=FileOptions.temperature_K if args.temperature is None else args.temperature,
         seed=getattr(args, "seed", FileOptions.seed),
         equilibrate_ps=equilibrate,
         cutoff_nm=getattr(args, "cutoff", FileOptions.cutoff_nm),
@@ -123,8 +125,55 @@ def unknown_systems(names: list[str]) -> list[str]:
 
 
 def system_to_prepare(name: str, args: argparse.Namespace) -> str | SystemDefinition:
-    """Return what ``prepare_system`` takes for ``name``: the name, or the definition of its files."""
-    return file_definition(name, file_options(args)) if is_system_file(name) else name
+    """Return what ``prepare_system`` takes for ``name``: the name, or the definition of its files.
+
+    Raises
+    ------
+    DefinitionError
+        For ``--temperature`` where no velocities are drawn at it (:func:`check_temperature`).
+    """
+    system = file_definition(name, file_options(args)) if is_system_file(name) else name
+    check_temperature(system, args)
+    return system
+
+
+def check_temperature(system: str | SystemDefinition, args: argparse.Namespace) -> None:
+    """Refuse a ``--temperature`` that would be ignored: the start's velocities are not drawn at it.
+
+    A named system starts from its equilibrated state, velocities included; files that
+    carry velocities (an AMBER restart, a serialized State) start from those unless
+    ``--equilibrate`` draws new ones. Without ``--temperature`` nothing is checked.
+
+    Raises
+    ------
+    DefinitionError
+        Naming where the velocities come from and how to start at the temperature given.
+    """
+    kelvin = getattr(args, "temperature", None)
+    if kelvin is None:
+        return
+    if not isinstance(system, SystemDefinition):
+        definition = load_definition(system)
+        toml = Path(system) if str(system).endswith(".toml") else DEFINITIONS_DIR / f"{system}.toml"
+        raise DefinitionError(
+            f"--temperature {kelvin:g} K does not apply to {system!r}: a named system starts from the state "
+            f"its definition makes (equilibration.temperature_K = "
+            f"{definition.equilibration['temperature_K']:g} K), velocities included; --temperature sets "
+            "the velocities drawn for a system given as files that carry none. Leave --temperature out, "
+            f"or run a copy of {toml} with another equilibration.temperature_K (its start is built and "
+            "cached at that temperature)."
+        )
+    if getattr(args, "equilibrate", None):
+        return  # velocities drawn at the temperature, then equilibrated at it
+    carrier = velocities_file(system)
+    if carrier is not None:
+        other = "--state STATE.xml" if system.build["kind"] == "openmm_xml" else "--coordinates FILE.inpcrd"
+        raise DefinitionError(
+            f"--temperature {kelvin:g} K would be ignored: {Path(carrier).name} carries velocities and the "
+            f"run starts from them. Leave --temperature out to start from them, or draw new velocities at "
+            f"{kelvin:g} K: add --equilibrate TIME (e.g. --equilibrate 10ps; minimized, then Langevin "
+            f"dynamics at {kelvin:g} K), or give {other} without velocities."
+        )
 
 
 def given_file_options(args: argparse.Namespace) -> list[str]:

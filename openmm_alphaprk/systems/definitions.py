@@ -30,8 +30,9 @@ from pathlib import Path
 from typing import Any
 
 import openmm.app as app
+import openmm.unit as unit
 
-from .._units import InputError
+from .._units import InputError, to_float
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -180,13 +181,24 @@ def parse_definition(data: dict[str, Any], name: str, base: Path | None = None) 
     kind = build.get("kind")
     if kind not in KINDS:
         raise DefinitionError(f"system {name!r}: build.kind must be one of {KINDS}, got {kind!r}.")
-    if kind not in BUILT_KINDS:
+    if kind in BUILT_KINDS:
+        _check_built_kind(name, kind, build)
+    else:
         check_file_build(name, build, Path.cwd() if base is None else base)
-        _check_keys(name, "equilibration", equilibration, _EQUILIBRATION_KEYS)
-        equilibration.setdefault("zero_momentum", False)
-        return SystemDefinition(name, str(data.get("description", "")), build, equilibration)
-    _check_keys(name, "build", build, {"forcefield": list, **_BUILD_KEYS[kind]})
     _check_keys(name, "equilibration", equilibration, _EQUILIBRATION_KEYS)
+    for key in ("temperature_K", "langevin_timestep_fs", "langevin_friction_per_ps"):
+        if not equilibration[key] > 0:
+            raise DefinitionError(f"system {name!r}: equilibration.{key} must be positive.")
+    for key in ("langevin_steps", "minimize_max_iterations"):
+        if equilibration[key] < 0:
+            raise DefinitionError(f"system {name!r}: equilibration.{key} must not be negative.")
+    equilibration.setdefault("zero_momentum", False)
+    return SystemDefinition(name, str(data.get("description", "")), build, equilibration)
+
+
+def _check_built_kind(name: str, kind: str, build: dict[str, Any]) -> None:
+    """Validate the ``[build]`` table of a kind the package builds, in place (defaults set)."""
+    _check_keys(name, "build", build, {"forcefield": list, **_BUILD_KEYS[kind]})
     method = build.setdefault("nonbonded_method", "PME")
     if method not in NONBONDED_METHODS:
         raise DefinitionError(f"system {name!r}: build.nonbonded_method must be one of {NONBONDED_METHODS}.")
@@ -215,14 +227,6 @@ def parse_definition(data: dict[str, Any], name: str, base: Path | None = None) 
             f"system {name!r}: cutoff_nm {build['cutoff_nm']} must be below half the box edge "
             f"({build['box_edge_nm'] / 2} nm); use a larger box or a shorter cutoff."
         )
-    for key in ("temperature_K", "langevin_timestep_fs", "langevin_friction_per_ps"):
-        if not equilibration[key] > 0:
-            raise DefinitionError(f"system {name!r}: equilibration.{key} must be positive.")
-    for key in ("langevin_steps", "minimize_max_iterations"):
-        if equilibration[key] < 0:
-            raise DefinitionError(f"system {name!r}: equilibration.{key} must not be negative.")
-    equilibration.setdefault("zero_momentum", False)
-    return SystemDefinition(name, str(data.get("description", "")), build, equilibration)
 
 
 def _check_keys(name: str, table: str, values: dict, required: dict[str, Any]) -> None:
@@ -347,7 +351,7 @@ def file_definition(path: str | Path, options: FileOptions | None = None) -> Sys
     equilibrate = options.equilibrate_ps > 0
     equilibration = {
         "seed": int(options.seed),
-        "temperature_K": float(options.temperature_K),
+        "temperature_K": _temperature(options.temperature_K),
         "minimize_tolerance_kJ_per_mol_nm": 10.0,
         "minimize_max_iterations": 500 if equilibrate else 0,
         "langevin_steps": round(options.equilibrate_ps / 0.002) if equilibrate else 0,
@@ -357,6 +361,18 @@ def file_definition(path: str | Path, options: FileOptions | None = None) -> Sys
     }
     data = {"description": f"{path.name} ({kind})", "build": build, "equilibration": equilibration}
     return parse_definition(data, path.stem)
+
+
+def _temperature(value: object) -> float:
+    """Return ``FileOptions.temperature_K`` in K, refusing a temperature that is not above 0 K."""
+    kelvin = to_float(value, unit.kelvin, "temperature_K (--temperature)")
+    if not kelvin > 0:
+        raise DefinitionError(
+            f"--temperature {kelvin:g} K: a temperature must be above 0 K (in kelvin, e.g. --temperature "
+            f"{FileOptions.temperature_K:g}); the start's velocities are drawn at it where the files have "
+            "none, and --equilibrate equilibrates at it."
+        )
+    return kelvin
 
 
 def check_file_build(name: str, build: dict[str, Any], base: Path | None = None) -> None:

@@ -50,6 +50,7 @@ __all__ = [
     "is_system_file",
     "load_files",
     "repartition_hydrogen_mass",
+    "velocities_file",
 ]
 
 #: Below this mass (amu) a particle bonded to one other is a hydrogen (repartitioned ones included).
@@ -126,6 +127,33 @@ def load_files(definition: SystemDefinition) -> LoadedFiles:
     if build["prepare_for_nve"]:
         changes += prepare_for_nve(system)
     return LoadedFiles(topology, system, np.asarray(positions, dtype=float), velocities, changes)
+
+
+def velocities_file(definition: SystemDefinition) -> str | None:
+    """Return the file of a file-kind definition that carries velocities, or None.
+
+    An AMBER restart (``.rst7``, ``.inpcrd`` with velocities) or a serialized State
+    with velocities: the start keeps them unless it is equilibrated (see
+    :func:`~.build.equilibrate`), where other files' starts get velocities drawn at
+    ``temperature_K``. Reads only that file.
+
+    Raises
+    ------
+    DefinitionError
+        For a coordinate or state file its reader rejects.
+    """
+    build, name = definition.build, definition.name
+    files = build.get("files", {})
+    if build.get("kind") == "amber":
+        carries = _read_inpcrd(name, files["coordinates"]).velocities is not None
+        return files["coordinates"] if carries else None
+    if build.get("kind") == "openmm_xml":
+        try:
+            _read_state(name, files["state"]).getVelocities()
+        except mm.OpenMMException:  # a State serialized without velocities
+            return None
+        return files["state"]
+    return None
 
 
 def repartition_hydrogen_mass(
