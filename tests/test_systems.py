@@ -13,9 +13,10 @@ import numpy as np
 import openmm as mm
 import openmm.unit as unit
 import pytest
-from quick_systems import QUICK, WATER_BOX, quick_system, stored_water_box
+from quick_systems import QUICK, TIP4PEW_BOX, WATER_BOX, quick_system, stored_water_box
 
 from openmm_alphaprk import IncompatibleSystemError
+from openmm_alphaprk.observables import degrees_of_freedom, masses, temperature
 from openmm_alphaprk.runs import run_nve
 from openmm_alphaprk.systems import (
     CACHE_ENV,
@@ -87,6 +88,66 @@ def test_tests_use_a_temporary_cache(tmp_path_factory):
     assert default_cache_dir() == Path(os.environ[CACHE_ENV])
 
 
+#: Potential energy per water molecule (kJ/mol) of an equilibrated start, and how far from it a
+#: start may be. Measured 2026-11-27 (CPU), full builds and the stored states: TIP3P boxes
+#: -39.25 to -40.12 (2, 3 and 4 nm, the tests' 1.8 nm box); SPC/E -47.16; TIP4P-Ew -46.53 (3 nm)
+#: and -45.85 (the tests' 1.8 nm box); the TIP3P cluster at 250 K -35.9 and -37.0; villin, its
+#: solute's energy included, -41.87 and -41.90. A start's own fluctuation is ~0.4 kJ/mol per
+#: molecule for 250 molecules (0.7 for the cluster's 74). Wrong builds of tip3p-2nm measured:
+#: minimized only -47.9, equilibrated at 250 K -42.4, 10 Langevin steps (800 K) -32.2.
+POTENTIAL_PER_WATER = {
+    "tip3p": (-39.7, 2.5),
+    "spce": (-47.2, 2.5),
+    "tip4pew": (-46.2, 2.5),
+    "water-cluster": (-36.5, 3.0),
+    "villin": (-41.9, 2.5),
+}
+
+
+def _is_hydrogen(atom) -> bool:
+    return atom.element is not None and atom.element.symbol == "H"
+
+
+def assert_a_sound_start(prepared) -> None:
+    """The start state of an equilibrated build: what a wrong build, protocol or unit would change.
+
+    - constraints: 3 per (rigid) water, plus each solute X–H bond with ``HBonds``;
+    - temperature from the kinetic energy over the degrees of freedom within 4 σ of the
+      protocol's, σ = T sqrt(2 / dof) (measured 2026-11-27: -2.0 σ to +1.4 σ over the
+      seven full builds, the shipped and the tests' stored states);
+    - potential energy per water molecule near the model's (:data:`POTENTIAL_PER_WATER`);
+    - a periodic box's density 0.88-1.06 g/cm³ (measured 0.913 for the tests' 1.8 nm
+      TIP4P-Ew box, 0.949-0.983 for the water boxes, 1.0185 for villin).
+    """
+    definition, system, topology = prepared.definition, prepared.system, prepared.topology
+    waters = [residue for residue in topology.residues() if residue.name == "HOH"]
+    assert waters, "no water in the topology"
+    solute_xh = sum(
+        _is_hydrogen(a) != _is_hydrogen(b) and a.residue.name != "HOH" for a, b in topology.bonds()
+    )
+    hbonds = definition.build.get("constraints") == "HBonds"
+    assert system.getNumConstraints() == 3 * len(waters) + (solute_xh if hbonds else 0)
+
+    dof = degrees_of_freedom(system)
+    kinetic = 0.5 * float((masses(system)[:, None] * prepared.velocities**2).sum())
+    target = float(definition.equilibration["temperature_K"])
+    sigma = target * np.sqrt(2.0 / dof)
+    assert abs(temperature(kinetic, dof) - target) < 4 * sigma, (temperature(kinetic, dof), target, sigma)
+
+    context = mm.Context(system, mm.VerletIntegrator(0.001), mm.Platform.getPlatformByName("CPU"))
+    context.setState(prepared.state)
+    potential = context.getState(getEnergy=True).getPotentialEnergy().value_in_unit(unit.kilojoules_per_mole)
+    key = definition.build.get("water_model") if definition.build["kind"] == "water_box" else definition.name
+    centre, margin = POTENTIAL_PER_WATER[key]
+    assert abs(potential / len(waters) - centre) < margin, (potential / len(waters), centre, margin)
+
+    if system.usesPeriodicBoundaryConditions():
+        a, b, c = prepared.state.getPeriodicBoxVectors(asNumpy=True).value_in_unit(unit.nanometers)
+        grams = masses(system).sum() / unit.AVOGADRO_CONSTANT_NA.value_in_unit(unit.mole**-1)
+        density = grams / (abs(np.dot(a, np.cross(b, c))) * 1e-21)  # nm³ → cm³
+        assert 0.88 < density < 1.06, density
+
+
 # ------------------------------------------------------------------ shipped start states
 def _refuse_to_build(monkeypatch):
     def refuse(*args, **kwargs):
@@ -135,6 +196,7 @@ def test_every_shipped_state_matches_its_definition_and_system():
             d = d.value_in_unit(unit.nanometers)
             assert abs(np.linalg.norm(x[j] - x[i]) - d) / d < 1e-7
             assert abs(np.dot(v[j] - v[i], x[j] - x[i])) < 1e-8
+        assert_a_sound_start(prepared)
 
 
 def test_the_tests_water_box_starts_from_its_stored_state():
@@ -143,6 +205,8 @@ def test_the_tests_water_box_starts_from_its_stored_state():
     assert stored is not None, "the test water box's stored state is stale: `python tests/quick_systems.py`"
     assert stored.source == "shipped" and stored.name == "tip3p-box-1.8nm"
     assert 500 < stored.n_atoms == stored.topology.getNumAtoms() == stored.system.getNumConstraints()  # rigid
+    assert_a_sound_start(stored)
+    assert_a_sound_start(stored_water_box(TIP4PEW_BOX))
 
 
 @pytest.mark.slow
@@ -270,8 +334,14 @@ def test_every_system_runs_every_integrator(name, cache, tmp_path):
 @pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(EXPECTED))
 def test_full_protocol_builds(name, tmp_path):
-    """The shipped protocols as they are (villin: about a minute on 2 cores)."""
-    prepared = prepare_system(name, cache_dir=tmp_path)
-    kinetic = prepared.state.getKineticEnergy().value_in_unit(unit.kilojoules_per_mole)
-    potential = prepared.state.getPotentialEnergy().value_in_unit(unit.kilojoules_per_mole)
-    assert kinetic > 0 and np.isfinite(potential) and potential < 0
+    """The shipped protocols as they are, built here (shipped start states too), give sound starts.
+
+    Measured 2026-11-27 (CPU, one build each; seconds on 2 cores busy with other work), the
+    temperature's distance from 300 K (cluster: 250 K) in σ and the potential energy per water
+    in kJ/mol: water-cluster (1 s) +0.4, -35.9; tip3p-2nm (16 s) +1.4, -39.25; tip3p-3nm (49 s)
+    +0.5, -40.12; tip3p-4nm (77 s) +1.0, -39.82; spce-3nm (42 s) -2.0, -47.16; tip4pew-3nm
+    (31 s) -1.2, -46.53; villin (82 s) -1.4, -41.87.
+    """
+    prepared = prepare_system(name, cache_dir=tmp_path, rebuild=True)
+    assert prepared.source == "built"
+    assert_a_sound_start(prepared)
