@@ -14,19 +14,34 @@ from ..runs.options import DEFAULTS, RunOptions
 from .parser import BENCHMARKS
 
 
-def _steps(args) -> tuple[int, float]:
+def _steps(args, default_steps: int = DEFAULTS.steps) -> tuple[int, float]:
     timestep = parse_time(args.timestep, "--timestep")
     if args.length is not None:
         steps = round(parse_time(args.length, "--length") / timestep)
         if steps < 1:
             raise QuantityError(f"--length {args.length} is shorter than one step of {args.timestep}.")
         return steps, timestep
-    return (args.steps or DEFAULTS.steps), timestep
+    return (args.steps or default_steps), timestep
 
 
-def _run_options(args) -> RunOptions:
+def _resolve_platform(args) -> None:
+    """Replace ``--platform auto`` by the fastest platform present; keep why in ``args.platform_reason``."""
+    from ..platforms import AUTO, fastest_platform
+
+    args.platform_reason = None
+    if args.platform == AUTO:
+        args.platform, args.platform_reason = fastest_platform()
+
+
+def _platform_line(args) -> str:
+    """Return the line that says which platform ``--platform auto`` chose and why ("" if it was given)."""
+    return f"\nplatform {args.platform_reason}; --platform chooses another" if args.platform_reason else ""
+
+
+def _run_options(args, default_steps: int = DEFAULTS.steps) -> RunOptions:
     """Return the :class:`~openmm_alphaprk.runs.RunOptions` of ``run`` and ``compare``."""
-    steps, timestep = _steps(args)
+    _resolve_platform(args)
+    steps, timestep = _steps(args, default_steps)
     return RunOptions(
         steps=steps,
         timestep=timestep,
@@ -138,7 +153,10 @@ def cmd_run(args) -> int:
         print(json.dumps(summary.as_dict(), indent=2))
         print(f"run directory: {output}", file=sys.stderr)
         return 0
-    print(format_comparison_table([summary], _run_header(summary), verlet_note=spec.kind == "verlet"))
+    print(
+        format_comparison_table([summary], _run_header(summary), verlet_note=spec.kind == "verlet")
+        + _platform_line(args)
+    )
     print(f"\nrun directory: {output}, summary: {Path(output) / SUMMARY_FILE}")
     return 0
 
@@ -153,10 +171,13 @@ def _run_header(summary) -> str:
 
 
 def cmd_compare(args) -> int:
-    from ..workflows.comparison import compare
+    from ..workflows.comparison import FULL_COMPARISON, MAIN_JOB, compare
 
+    preset = FULL_COMPARISON if args.full else MAIN_JOB
+    args.system = args.system or preset.system
+    args.integrators = args.integrators or list(preset.integrators)
     specs = [parse_integrator(name) for name in args.integrators]
-    options = _run_options(args)
+    options = _run_options(args, preset.steps)
     if args.accuracy_steps < 0:
         raise InputError(
             f"--accuracy-steps must be 0 (none) or a positive number of steps, got {args.accuracy_steps}."
@@ -172,7 +193,7 @@ def cmd_compare(args) -> int:
         equal_cost=not args.no_equal_cost,
         accuracy_steps=args.accuracy_steps,
     )
-    print(result.table)
+    print(result.table + _platform_line(args))
     print(
         f"\nresults: {result.output / 'comparison.json'}"
         + (f", figure: {result.figure}" if result.figure else "")

@@ -5,10 +5,11 @@ from __future__ import annotations
 import argparse
 import re
 
+from ..platforms import AUTO
 from ..runs.integrator_names import INTEGRATOR_HELP, INTEGRATOR_NAMES
 from ..runs.options import DEFAULTS, PRECISIONS
 from ..systems.arguments import add_file_arguments
-from ..workflows.comparison import ACCURACY_STEPS, DEFAULT_INTEGRATORS, DEFAULT_SYSTEM, VERLET_NOTE
+from ..workflows.comparison import ACCURACY_STEPS, FULL_COMPARISON, MAIN_JOB, VERLET_NOTE
 from .quantities import positive
 
 SYSTEM_HELP = (
@@ -103,34 +104,48 @@ def _add_run_parser(sub) -> None:
 
 
 def _add_compare_parser(sub) -> None:
+    quick, full = MAIN_JOB, FULL_COMPARISON
     comp = sub.add_parser(
         "compare",
-        help="several integrators from the same start: table and H - E_ref figure",
+        help="several integrators from the same start: table, verdict and H - E_ref figure",
         description=(
-            "Run every integrator from the same equilibrated state (one run directory each, resumable), "
-            "print a table (drift kJ/mol/ns per DOF from a linear fit with its standard error, RMS and max "
+            f"The main job: without arguments, {' '.join(quick.integrators)} on {quick.system} for "
+            f"{quick.steps} steps of 2 fs, on the fastest platform present (a few minutes on two cores); "
+            f"--full compares {' '.join(full.integrators)} on {full.system} for {full.steps} steps. "
+            "Every integrator runs from the same equilibrated state (one run directory each, resumable); "
+            "the table gives drift kJ/mol/ns per DOF from a linear fit with its standard error, RMS and max "
             "|H - E_ref| kJ/mol with E_ref the total energy of the start state, max relative constraint "
-            "error, force evaluations per step, ns/day) and write comparison.json, table.txt and "
-            "energy_residuals.png into the output folder, by default alphaprk-compare-<system> in the "
+            "error, force evaluations per step, ns/day; comparison.json, table.txt and "
+            "energy_residuals.png go into the output folder, by default alphaprk-compare-<system> in the "
             "current directory (-o to choose another). After the listed runs, RATTLE also runs at h/k "
             "for the same simulated time, k the force evaluations per step of each row that takes more than "
             "one, rounded up: the table states each such row's gain at equal cost (--no-equal-cost skips "
-            "it). Each "
-            "row's position error against RATTLE at h/64 after a few steps (--accuracy-steps, 0: none) is "
-            "the table's last column: exact energy is not accurate dynamics. " + VERLET_NOTE
+            "it). Each row's position error against RATTLE at h/64 after a few steps (--accuracy-steps, 0: "
+            "none) is the table's last column: exact energy is not accurate dynamics. The last line is the "
+            "verdict: the row that holds the energy and tracks the dynamics best at equal cost. "
+            + VERLET_NOTE
         ),
         epilog=f"Integrators: {INTEGRATOR_HELP}.",
     )
     comp.add_argument(
-        "system", nargs="?", default=DEFAULT_SYSTEM, help=f"{SYSTEM_HELP} (default {DEFAULT_SYSTEM})"
+        "system",
+        nargs="?",
+        default=None,
+        help=f"{SYSTEM_HELP} (default {quick.system}; {full.system} with --full)",
+    )
+    comp.add_argument(
+        "--full",
+        action="store_true",
+        help=f"the full comparison: {full.system}, {full.steps} steps, {' '.join(full.integrators)} "
+        "(the system, --integrators and --steps given still apply)",
     )
     comp.add_argument(
         "-i",
         "--integrators",
         nargs="+",
-        default=list(DEFAULT_INTEGRATORS),
+        default=None,
         help=f"integrators to compare, each one of {INTEGRATOR_NAMES} (default: "
-        f"{' '.join(DEFAULT_INTEGRATORS)})",
+        f"{' '.join(quick.integrators)}; with --full {' '.join(full.integrators)})",
     )
     comp.add_argument(
         "-o",
@@ -153,7 +168,7 @@ def _add_compare_parser(sub) -> None:
         f"start (default {ACCURACY_STEPS}: 20 fs at 2 fs; 0 skips it)",
     )
     _add_rebuild(comp)
-    _add_run_options(comp)
+    _add_run_options(comp, f"{MAIN_JOB.steps}; {FULL_COMPARISON.steps} with --full")
     add_file_arguments(comp)
 
 
@@ -233,11 +248,11 @@ def _add_bench_parser(sub) -> None:
     )
 
 
-def _add_run_options(parser: argparse.ArgumentParser) -> None:
+def _add_run_options(parser: argparse.ArgumentParser, default_steps: str = f"{DEFAULTS.steps}") -> None:
     """Add the options of :class:`~openmm_alphaprk.runs.RunOptions`, with its defaults."""
     length = parser.add_mutually_exclusive_group()
     length.add_argument(
-        "--steps", type=positive, default=None, help=f"number of MD steps (default {DEFAULTS.steps})"
+        "--steps", type=positive, default=None, help=f"number of MD steps (default {default_steps})"
     )
     length.add_argument(
         "--length", default=None, help="simulated time instead of --steps, with a unit: 10ps, 0.5ns"
@@ -250,9 +265,9 @@ def _add_run_options(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--platform",
-        default=DEFAULTS.platform,
-        help=f"OpenMM platform: {DEFAULTS.platform} (default), Reference (double precision, slow), "
-        "CUDA, OpenCL",
+        default=AUTO,
+        help=f"OpenMM platform: {AUTO} (default: the fastest present, CUDA, then HIP, then OpenCL on a "
+        "GPU, else CPU; printed), CPU, Reference (double precision, slow), CUDA, OpenCL, HIP",
     )
     parser.add_argument(
         "--precision",

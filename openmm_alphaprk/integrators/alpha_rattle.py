@@ -135,8 +135,9 @@ class AlphaRattleIntegrator(_StepProgram):
     >>> integrator.step(10)
     >>> integrator.alpha = 0.1  # between steps: the program reads α each step
     >>> integrator.step(10)
-    >>> integrator.midpoint_iterations  # the implicit midpoint force converges
-    2
+    >>> x = context.getState(getPositions=True).getPositions(asNumpy=True)
+    >>> round(float(((x[1] - x[0]) ** 2).sum().value_in_unit(unit.nanometers**2) ** 0.5), 9)  # kept
+    0.3
     """
 
     _kind = 2
@@ -341,7 +342,7 @@ class AlphaRattleIntegrator(_StepProgram):
         chosen = self.composition
         extra = "" if self.energy_mode else f", alpha={self.alpha}"
         if chosen is not None:
-            extra = f", composition={chosen.name!r}"
+            extra += f", composition={chosen.name!r}"
             if chosen.alpha_stages != chosen.with_alpha_on("middle").alpha_stages:
                 extra += f", alpha_stages={chosen.alpha_stages}"
         return f"{type(self).__name__}(timestep={self.timestep}{extra})"

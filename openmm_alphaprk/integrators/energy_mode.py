@@ -3,7 +3,10 @@
 :class:`AlphaRattleEnergyIntegrator` is a subclass of the fixed-α
 :class:`~.alpha_rattle.AlphaRattleIntegrator` whose programs choose α. Its two programs,
 one α-RATTLE step or a composition of them, are the ``_build_*`` methods below;
-the controller's pieces follow them.
+the controller's pieces follow them. docs/energy_program.md reads both programs as the state
+machine described below: an outline of each by block and piece, and every global the controller
+keeps, stage by stage, with its meaning and the pieces that write it (generated from the programs
+by ``python -m tools.reports.energy_program``).
 
 **The energy mode.** Each step chooses α so that the total energy after the step equals the reference
 energy E_ref, the energy of the state the run started from. The

@@ -382,7 +382,7 @@ def _progress(run: _Run, start_step: int) -> tqdm:
     return tqdm(
         total=run.options.steps,
         initial=start_step,
-        desc=f"NVE {run.output.name}",
+        desc=f"NVE {run.output.name} ({run.options.platform})",
         unit="step",
         disable=not run.options.progress,
         file=sys.stderr,

@@ -18,8 +18,30 @@ from ..runs.integrator_names import IntegratorSpec, at_divisor, check_compatible
 from ..runs.reporters import EVERY_STEP
 from ..systems import PreparedSystem, load_definition, prepare_system
 
-DEFAULT_SYSTEM = "tip3p-3nm"
-DEFAULT_INTEGRATORS = ("rattle", "rattle+rescale", "alpha4=0", "rattle4+rescale", "energy4", "verlet")
+
+@dataclass(frozen=True)
+class ComparisonPreset:
+    """A comparison the command line runs by name: its system, integrators and length."""
+
+    system: str
+    integrators: tuple[str, ...]
+    steps: int
+
+
+#: The main job, ``alphaprk compare``: RATTLE, the recommended compositions with rescaling, the
+#: composition without it and the energy mode on the 2 nm water box for 1 ps (a few minutes on
+#: two cores).
+MAIN_JOB = ComparisonPreset(
+    "tip3p-2nm", ("rattle", "rattle+rescale", "rattle4+rescale", "alpha4=0", "energy4"), 500
+)
+#: ``alphaprk compare --full``: the 3 nm box for 2 ps, ``VerletIntegrator`` included.
+FULL_COMPARISON = ComparisonPreset(
+    "tip3p-3nm", ("rattle", "rattle+rescale", "rattle4+rescale", "alpha4=0", "energy4", "verlet"), 1000
+)
+DEFAULT_SYSTEM = MAIN_JOB.system
+DEFAULT_INTEGRATORS = MAIN_JOB.integrators
+#: A row holds the energy when its RMS(H − E_ref) is below RATTLE's over this.
+HELD_FACTOR = 100.0
 #: Steps of h after which each row's position error is taken against RATTLE at h/64 (2 fs: 20 fs).
 ACCURACY_STEPS = 10
 COMPARISON_FILE = "comparison.json"
@@ -38,6 +60,7 @@ class Comparison:
     output: Path
     figure: Path | None
     accuracy: dict[str, Horizon] = field(default_factory=dict)
+    verdict: str = ""
 
 
 def compare(
@@ -115,10 +138,13 @@ def compare(
     table = format_comparison_table(
         summaries, header, any(spec.kind == "verlet" for spec in specs), gains, accuracy
     )
+    said = verdict(summaries, accuracy)
+    if said:
+        table += "\n" + said
     leapfrog = [spec.name for spec in specs if spec.kind == "verlet"]
     figure = _figure(directories, output, summaries[0], options, leapfrog) if plot else None
-    _write(output, prepared.name, header, directories, summaries, figure, table, gains, accuracy)
-    return Comparison(prepared.name, summaries, table, output, figure, accuracy)
+    _write(output, prepared.name, header, directories, summaries, figure, table, gains, accuracy, said)
+    return Comparison(prepared.name, summaries, table, output, figure, accuracy, said)
 
 
 def _accuracy(
@@ -217,6 +243,104 @@ def equal_cost_gains(
             )
         gains.append(entry)
     return gains
+
+
+@dataclass(frozen=True)
+class EqualCostStanding:
+    """One row against RATTLE at the same force evaluations (RATTLE itself for one per step)."""
+
+    integrator: str
+    baseline: str
+    rms_residual: float
+    baseline_rms_residual: float
+    energy_gain: float
+    holds_energy: bool
+    position_gain: float | None
+
+
+def equal_cost_standings(
+    summaries: Sequence[RunSummary], accuracy: dict[str, Horizon] | None = None
+) -> list[EqualCostStanding]:
+    """Each row (RATTLE, ``verlet`` and the h/k rows excepted) against RATTLE at equal cost.
+
+    A row of k force evaluations per step is set against RATTLE at h/k, a row of one
+    (``rattle+rescale``) against RATTLE; rows whose baseline did not run are left out. A row
+    holds the energy when its RMS(H − E_ref) is below RATTLE's over :data:`HELD_FACTOR`.
+    """
+    accuracy = accuracy or {}
+    by_name = {summary.integrator: summary for summary in summaries}
+    rattle = by_name.get("rattle")
+    if rattle is None:
+        return []
+    standings = []
+    for summary in summaries:
+        name = summary.integrator
+        if name == "rattle" or name.startswith(equal_cost_name(0)[:-1]) or name == "verlet":
+            continue
+        k = equal_cost_divisor(summary.force_evaluations_per_step)
+        baseline = "rattle" if k == 1 else equal_cost_name(k)
+        if baseline not in by_name:
+            continue
+        position = None
+        if name in accuracy and baseline in accuracy:
+            position = gain(accuracy[baseline].position_rms, accuracy[name].position_rms)
+        standings.append(
+            EqualCostStanding(
+                name,
+                baseline,
+                summary.rms_residual,
+                by_name[baseline].rms_residual,
+                gain(by_name[baseline].rms_residual, summary.rms_residual),
+                summary.rms_residual < rattle.rms_residual / HELD_FACTOR,
+                position,
+            )
+        )
+    return standings
+
+
+def verdict(summaries: Sequence[RunSummary], accuracy: dict[str, Horizon] | None = None) -> str:
+    """Return the comparison's one-line verdict: the best row at equal cost, and the energy mode's standing.
+
+    The best row holds the energy (:func:`equal_cost_standings`) and has the largest
+    position gain over RATTLE at equal cost (without position errors: the largest energy
+    gain). Empty without a RATTLE row or a row to set against it.
+    """
+    standings = equal_cost_standings(summaries, accuracy)
+    if not standings:
+        return ""
+    rattle = next(s for s in summaries if s.integrator == "rattle")
+
+    def rank(standing: EqualCostStanding) -> tuple:
+        position = standing.position_gain if standing.position_gain is not None else 0.0
+        return (standing.holds_energy, position, standing.energy_gain)
+
+    best = max(standings, key=rank)
+    line = f"verdict: {best.integrator} is best at equal cost: RMS|H - E_ref| {best.rms_residual:.2g} kJ/mol"
+    line += f" (RATTLE {rattle.rms_residual:.2g}"
+    line += (
+        ")" if best.baseline == "rattle" else f", at h/{best.baseline[9:]} {best.baseline_rms_residual:.2g})"
+    )
+    if best.position_gain is not None:
+        line += f", positions {_position_text(best.position_gain)} {_against(best)}"
+    for standing in standings:
+        if standing.integrator.startswith("energy") and standing is not best:
+            line += (
+                f"; the energy mode {standing.integrator}: energy error "
+                f"{gain_text(standing.energy_gain)} {_against(standing)}"
+            )
+            if standing.position_gain is not None:
+                line += f", positions {_position_text(standing.position_gain)}"
+    return line
+
+
+def _position_text(ratio: float) -> str:
+    """Say a position gain as "14.7x closer" or "1.4x farther"."""
+    text = gain_text(ratio)
+    return text.replace("lower", "closer").replace("higher", "farther")
+
+
+def _against(standing: EqualCostStanding) -> str:
+    return "than RATTLE's" if standing.baseline == "rattle" else f"than RATTLE at h/{standing.baseline[9:]}"
 
 
 def _ratio_text(ratio: float) -> str:
@@ -349,6 +473,7 @@ def _write(
     table: str,
     gains: list[dict],
     accuracy: dict[str, Horizon],
+    said: str,
 ) -> None:
     """Write ``comparison.json`` and ``table.txt``."""
     (output / COMPARISON_FILE).write_text(
@@ -364,6 +489,7 @@ def _write(
                     "rows": {name: asdict(horizon) for name, horizon in accuracy.items()},
                 },
                 "figure": str(figure) if figure else None,
+                "verdict": said,
             },
             indent=2,
         )
