@@ -7,7 +7,12 @@ import inspect
 import re
 from pathlib import Path
 
-from openmm_alphaprk import AlphaRattleIntegrator, RattleIntegrator
+from openmm_alphaprk import (
+    AlphaRattleEnergyIntegrator,
+    AlphaRattleIntegrator,
+    RattleIntegrator,
+    RattleRescaleIntegrator,
+)
 from openmm_alphaprk.runs.integrator_names import parse_integrator
 from openmm_alphaprk.workflows.comparison import DEFAULT_INTEGRATORS
 from tools.reports import guide, sources
@@ -127,27 +132,32 @@ def test_the_default_comparison_uses_the_recommended_energy_mode():
     assert "energy4" in DEFAULT_INTEGRATORS
 
 
-def _readme_signature(name: str) -> inspect.Signature:
-    """The signature the README's "Use" section gives for ``name(...)``, parsed as Python."""
-    text = (ROOT / "README.md").read_text(encoding="utf-8")
+def _documented_signature(name: str) -> inspect.Signature:
+    """The signature docs/integrators.md ("The integrators") gives for ``name(...)``, parsed as Python."""
+    text = (ROOT / "docs" / "integrators.md").read_text(encoding="utf-8")
     match = re.search(rf"`{name}\((timestep[^`]*)\)`", text)
-    assert match, f"the README gives {name}'s signature"
+    assert match, f"docs/integrators.md gives {name}'s signature"
     parameters = " ".join(match.group(1).split())
     try:
         (function,) = ast.parse(f"def f({parameters}): pass").body
     except SyntaxError:
-        raise AssertionError(f"the README's {name}({parameters}) is not a Python signature") from None
+        raise AssertionError(f"the documented {name}({parameters}) is not a Python signature") from None
     namespace: dict = {}
     exec(compile(ast.Module([function], []), "README", "exec"), namespace)
     return inspect.signature(namespace["f"])
 
 
-def test_readme_signatures_are_the_real_ones():
-    for cls in (AlphaRattleIntegrator, RattleIntegrator):
-        real = inspect.signature(cls.__init__).replace(
-            parameters=list(inspect.signature(cls.__init__).parameters.values())[1:]
-        )
-        written = _readme_signature(cls.__name__)
+def test_the_documented_signatures_are_the_real_ones():
+    """docs/integrators.md gives each constructor's signature: the one ``inspect.signature`` finds."""
+    for cls in (
+        AlphaRattleIntegrator,
+        AlphaRattleEnergyIntegrator,
+        RattleIntegrator,
+        RattleRescaleIntegrator,
+    ):
+        real = inspect.signature(cls)
+        assert next(iter(real.parameters)) == "timestep", cls.__name__
+        written = _documented_signature(cls.__name__)
         assert [(p.name, p.kind, p.default) for p in written.parameters.values()] == [
             (p.name, p.kind, p.default) for p in real.parameters.values()
         ], cls.__name__
