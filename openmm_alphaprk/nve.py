@@ -95,6 +95,28 @@ class StateChangingForceWarning(UserWarning):
 
     The energy mode does not apply them (see :func:`state_changing_forces`); RATTLE and
     fixed α do.
+
+    Examples
+    --------
+    Issued by the energy mode's ``check_context``:
+
+    >>> import openmm, warnings
+    >>> from openmm_alphaprk import AlphaRattleEnergyIntegrator
+    >>> system = openmm.System()
+    >>> for _ in range(2):
+    ...     _ = system.addParticle(39.9)
+    >>> _ = system.addForce(openmm.CMMotionRemover())
+    >>> integrator = AlphaRattleEnergyIntegrator(0.002)
+    >>> context = openmm.Context(system, integrator, openmm.Platform.getPlatformByName("Reference"))
+    >>> with warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     integrator.check_context(context)
+    >>> caught[0].category.__name__
+    'StateChangingForceWarning'
+    >>> print(caught[0].message)  # doctest: +ELLIPSIS
+    the energy-preserving mode runs NVE; 1 force(s) of this System change the state between steps and ...
+      - CMMotionRemover (force 0): the energy mode does not apply it (...). ...
+    See help(openmm_alphaprk.nve).
     """
 
 
@@ -113,7 +135,7 @@ def state_changing_forces(system: mm.System) -> list[str]:
 
     Parameters
     ----------
-    system
+    system : openmm.System
         The System to check (not changed).
 
     Returns
@@ -122,6 +144,16 @@ def state_changing_forces(system: mm.System) -> list[str]:
         One message per force, naming it, what the energy mode does with it and the
         fix; empty if there is none.
 
+    Examples
+    --------
+    >>> import openmm
+    >>> from openmm_alphaprk import state_changing_forces
+    >>> system = openmm.System()
+    >>> _ = system.addParticle(39.9)
+    >>> _ = system.addForce(openmm.CMMotionRemover())
+    >>> for message in state_changing_forces(system):
+    ...     print(message)  # doctest: +ELLIPSIS
+    CMMotionRemover (force 0): the energy mode does not apply it (...). ... or remove the force.
     """
     messages = []
     for index, force in enumerate(system.getForces()):
@@ -163,10 +195,12 @@ def prepare_for_nve(
 
     Parameters
     ----------
-    system
+    system : openmm.System
         The System to change (before creating a Context from it: an existing Context
         does not see the change).
-    switch_width, ewald_error_tolerance
+    switch_width : openmm.unit.Quantity or float or None, default 0.1 nm
+        As for :func:`make_smooth`.
+    ewald_error_tolerance : float or None, default 1e-5
         As for :func:`make_smooth`.
 
     Returns
@@ -188,6 +222,29 @@ def prepare_for_nve(
     worse than RATTLE at 5e-4, while 1e-5 cost 1.3× a 5e-4 step (1.55× on solvated villin).
     Where only fixed-α integrators are compared, 1e-4 gives RATTLE the same error.
 
+    Examples
+    --------
+    A PME System with OpenMM's defaults and a ``CMMotionRemover``, as ``createSystem``
+    makes it:
+
+    >>> import openmm
+    >>> from openmm_alphaprk import prepare_for_nve, smoothness_problems
+    >>> system = openmm.System()
+    >>> system.setDefaultPeriodicBoxVectors(openmm.Vec3(3, 0, 0), openmm.Vec3(0, 3, 0), openmm.Vec3(0, 0, 3))
+    >>> nonbonded = openmm.NonbondedForce()  # OpenMM's defaults: no switch, Ewald tolerance 5e-4
+    >>> nonbonded.setNonbondedMethod(openmm.NonbondedForce.PME)
+    >>> for charge in (0.5, -0.5):
+    ...     _ = system.addParticle(39.9)
+    ...     _ = nonbonded.addParticle(charge, 0.34, 1.0)
+    >>> _ = system.addForce(nonbonded)
+    >>> _ = system.addForce(openmm.CMMotionRemover())
+    >>> for change in prepare_for_nve(system):
+    ...     print(change)  # doctest: +ELLIPSIS
+    NonbondedForce (force 0): no switching function → switching from 0.9 nm (cutoff 1 nm)
+    NonbondedForce (force 0): Ewald error tolerance 0.0005 → 1e-05
+    CMMotionRemover (force 1): removed (an NVE run conserves the centre-of-mass momentum without it; ...)
+    >>> smoothness_problems(system), system.getNumForces()
+    ([], 1)
     """
     changes = make_smooth(system, switch_width, ewald_error_tolerance)
     return changes + _remove_unapplied_forces(system)

@@ -46,7 +46,36 @@ _SMALL = 1e-12  # nm: switching distances this close count as equal (round-off o
 
 
 class NonSmoothForcesWarning(UserWarning):
-    """An energy-mode integrator was given a System whose energy is not smooth (see smoothness_problems)."""
+    """An energy-mode integrator was given a System whose energy is not smooth (see smoothness_problems).
+
+    Examples
+    --------
+    Issued by the energy mode's ``check_context``, here for a PME System with OpenMM's
+    defaults:
+
+    >>> import openmm, warnings
+    >>> from openmm_alphaprk import AlphaRattleEnergyIntegrator
+    >>> system = openmm.System()
+    >>> system.setDefaultPeriodicBoxVectors(openmm.Vec3(3, 0, 0), openmm.Vec3(0, 3, 0), openmm.Vec3(0, 0, 3))
+    >>> nonbonded = openmm.NonbondedForce()  # OpenMM's defaults: no switch, Ewald tolerance 5e-4
+    >>> nonbonded.setNonbondedMethod(openmm.NonbondedForce.PME)
+    >>> for charge in (0.5, -0.5):
+    ...     _ = system.addParticle(39.9)
+    ...     _ = nonbonded.addParticle(charge, 0.34, 1.0)
+    >>> _ = system.addForce(nonbonded)
+    >>> integrator = AlphaRattleEnergyIntegrator(0.002)
+    >>> context = openmm.Context(system, integrator, openmm.Platform.getPlatformByName("Reference"))
+    >>> with warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     integrator.check_context(context)
+    >>> caught[0].category.__name__
+    'NonSmoothForcesWarning'
+    >>> print(caught[0].message)  # doctest: +ELLIPSIS
+    the energy-preserving mode needs smooth forces; 2 problem(s) found:
+      - NonbondedForce (force 0) cuts interactions off at 1 nm without a switching function: ...
+      - NonbondedForce (force 0) has an Ewald error tolerance of 0.0005 (OpenMM's default is 5e-4); ...
+    See help(openmm_alphaprk.smooth_forces).
+    """
 
 
 def label_force(index: int, force: mm.Force) -> str:
@@ -92,7 +121,7 @@ def smoothness_problems(system: mm.System) -> list[str]:
 
     Parameters
     ----------
-    system
+    system : openmm.System
         The System to check (not changed).
 
     Returns
@@ -104,6 +133,25 @@ def smoothness_problems(system: mm.System) -> list[str]:
         Ewald/PME/LJPME error tolerance above 1e-5. Forces that change the state
         between steps are listed by :func:`state_changing_forces` instead.
 
+    Examples
+    --------
+    >>> import openmm
+    >>> from openmm_alphaprk import smoothness_problems
+    >>> system = openmm.System()
+    >>> system.setDefaultPeriodicBoxVectors(openmm.Vec3(3, 0, 0), openmm.Vec3(0, 3, 0), openmm.Vec3(0, 0, 3))
+    >>> nonbonded = openmm.NonbondedForce()  # OpenMM's defaults: no switch, Ewald tolerance 5e-4
+    >>> nonbonded.setNonbondedMethod(openmm.NonbondedForce.PME)
+    >>> for charge in (0.5, -0.5):
+    ...     _ = system.addParticle(39.9)
+    ...     _ = nonbonded.addParticle(charge, 0.34, 1.0)
+    >>> _ = system.addForce(nonbonded)
+    >>> for problem in smoothness_problems(system):
+    ...     print(problem)  # doctest: +ELLIPSIS
+    NonbondedForce (force 0) cuts interactions off at 1 nm without a switching function: ...
+    NonbondedForce (force 0) has an Ewald error tolerance of 0.0005 (OpenMM's default is 5e-4); ...
+    >>> from openmm_alphaprk.systems import prepare_system
+    >>> smoothness_problems(prepare_system("tip3p-2nm").system)  # the package's systems are smooth
+    []
     """
     problems = []
     for index, force in enumerate(system.getForces()):
@@ -144,14 +192,14 @@ def make_smooth(
 
     Parameters
     ----------
-    system
+    system : openmm.System
         The System to change (before creating a Context from it: an existing Context
         does not see the change).
-    switch_width
-        Width of the switching region (Quantity or nm; default 0.1 nm); None leaves
-        switching functions as they are.
-    ewald_error_tolerance
-        The loosest Ewald error tolerance to keep (default 1e-5); None leaves it.
+    switch_width : openmm.unit.Quantity or float or None, default 0.1 nm
+        Width of the switching region (Quantity or nm); None leaves switching
+        functions as they are.
+    ewald_error_tolerance : float or None, default 1e-5
+        The loosest Ewald error tolerance to keep; None leaves it.
 
     Returns
     -------
@@ -164,6 +212,24 @@ def make_smooth(
     ValueError
         If cutoff − ``switch_width`` ≤ 0 for some force (nothing is changed then).
 
+    Examples
+    --------
+    >>> import openmm, openmm.unit as unit
+    >>> from openmm_alphaprk import make_smooth
+    >>> system = openmm.System()
+    >>> system.setDefaultPeriodicBoxVectors(openmm.Vec3(3, 0, 0), openmm.Vec3(0, 3, 0), openmm.Vec3(0, 0, 3))
+    >>> nonbonded = openmm.NonbondedForce()  # OpenMM's defaults: no switch, Ewald tolerance 5e-4
+    >>> nonbonded.setNonbondedMethod(openmm.NonbondedForce.PME)
+    >>> for charge in (0.5, -0.5):
+    ...     _ = system.addParticle(39.9)
+    ...     _ = nonbonded.addParticle(charge, 0.34, 1.0)
+    >>> _ = system.addForce(nonbonded)
+    >>> for change in make_smooth(system, switch_width=0.2 * unit.nanometers):
+    ...     print(change)
+    NonbondedForce (force 0): no switching function → switching from 0.8 nm (cutoff 1 nm)
+    NonbondedForce (force 0): Ewald error tolerance 0.0005 → 1e-05
+    >>> make_smooth(system)  # already switched from 0.8 nm, closer in than 0.9 nm
+    []
     """
     width = None
     if switch_width is not None:

@@ -25,10 +25,36 @@ class RattleIntegrator(_StepProgram):
 
     Parameters
     ----------
-    timestep
-        Step size (Quantity, or number in picoseconds).
-    constraint_tolerance
+    timestep : openmm.unit.Quantity or float
+        Step size (a time Quantity, or a number in picoseconds).
+    constraint_tolerance : float, default 1e-8
         Relative constraint tolerance passed to ``setConstraintTolerance``.
+
+    See Also
+    --------
+    RattleRescaleIntegrator : RATTLE with velocity rescaling, which holds the energy.
+    AlphaRattleIntegrator : the α-RATTLE family; α = 0 is this integrator.
+
+    Examples
+    --------
+    Two argon atoms held 0.3 nm apart, spinning:
+
+    >>> import openmm, openmm.unit as unit
+    >>> from openmm_alphaprk import RattleIntegrator
+    >>> integrator = RattleIntegrator(2 * unit.femtoseconds)
+    >>> integrator
+    RattleIntegrator(timestep=0.002 ps)
+    >>> system = openmm.System()
+    >>> for _ in range(2):
+    ...     _ = system.addParticle(39.9)
+    >>> _ = system.addConstraint(0, 1, 0.3)
+    >>> context = openmm.Context(system, integrator, openmm.Platform.getPlatformByName("Reference"))
+    >>> context.setPositions([[0, 0, 0], [0.3, 0, 0]])
+    >>> context.setVelocities([[0, 0.5, 0], [0, -0.5, 0]])
+    >>> integrator.step(100)
+    >>> x = context.getState(getPositions=True).getPositions(asNumpy=True).value_in_unit(unit.nanometers)
+    >>> round(float(((x[1] - x[0]) ** 2).sum() ** 0.5), 8)  # the constraint, kept
+    0.3
     """
 
     _kind = 1

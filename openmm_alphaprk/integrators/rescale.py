@@ -54,7 +54,26 @@ _INERTIA_REGULARIZATION = 1e-12
 
 
 class VelocityRescaleError(RuntimeError):
-    """Raised when RATTLE + velocity rescaling finds no real factor that makes the total energy E_ref."""
+    """Raised when RATTLE + velocity rescaling finds no real factor that makes the total energy E_ref.
+
+    Examples
+    --------
+    A dimer at rest has no internal kinetic energy to scale:
+
+    >>> import openmm
+    >>> from openmm_alphaprk import RattleRescaleIntegrator
+    >>> system = openmm.System()
+    >>> for _ in range(2):
+    ...     _ = system.addParticle(39.9)
+    >>> _ = system.addConstraint(0, 1, 0.3)
+    >>> integrator = RattleRescaleIntegrator(0.002)
+    >>> context = openmm.Context(system, integrator, openmm.Platform.getPlatformByName("Reference"))
+    >>> context.setPositions([[0, 0, 0], [0.3, 0, 0]])
+    >>> integrator.step(1)  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    openmm_alphaprk.integrators.rescale.VelocityRescaleError: no real velocity scale s makes K + V ...
+    """
 
 
 class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
@@ -84,21 +103,55 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
 
     Parameters
     ----------
-    timestep
-        Step size (Quantity, or number in picoseconds).
-    constraint_tolerance
+    timestep : openmm.unit.Quantity or float
+        Step size (a time Quantity, or a number in picoseconds).
+    constraint_tolerance : float, default 1e-8
         Relative constraint tolerance passed to ``setConstraintTolerance``.
-    energy_tolerance
+    energy_tolerance : openmm.unit.Quantity or float, optional
         Total-energy change (Quantity or kJ/mol) below which a state set between steps
         keeps E_ref (see :attr:`energy_tolerance`); default: 3× the noise of OpenMM's
         energy for the system's size and the platform's precision, set by
         :meth:`check_context`.
-    order, composition
-        Instead of one RATTLE step, a symmetric composition of RATTLE steps
-        (:mod:`~.compositions`): ``order=4`` (Suzuki's five stages), ``order=6``
-        (McLachlan's nine), or a composition by name; the rescaling follows its last
-        stage. s force evaluations per step for s stages, the energy read with the last.
-        The trajectory is the composition's (fourth or sixth order) but for the scale s.
+    order : {2, 4, 6}, optional
+        Instead of one RATTLE step (2, the default), a symmetric composition of RATTLE
+        steps (:mod:`~.compositions`): ``order=4`` (Suzuki's five stages), ``order=6``
+        (McLachlan's nine). The rescaling follows its last stage: s force evaluations
+        per step for s stages, the energy read with the last. The trajectory is the
+        composition's (fourth or sixth order) but for the scale s.
+    composition : str or Composition, optional
+        A composition by name (:data:`~.compositions.COMPOSITIONS`) or a
+        :class:`~.compositions.Composition`, instead of ``order``.
+
+    Raises
+    ------
+    VelocityRescaleError
+        From :meth:`step`, for a step after which no real scale factor exists.
+
+    See Also
+    --------
+    RattleIntegrator : the same step without the rescaling.
+    AlphaRattleEnergyIntegrator : α chosen every step to hold the energy (costs more).
+
+    Examples
+    --------
+    ``rattle4+rescale`` (the recommended way to hold the energy) on the shipped
+    cluster of 74 waters:
+
+    >>> import openmm, openmm.unit as unit
+    >>> from openmm_alphaprk import RattleRescaleIntegrator
+    >>> from openmm_alphaprk.systems import prepare_system
+    >>> water = prepare_system("water-cluster")
+    >>> integrator = RattleRescaleIntegrator(2 * unit.femtoseconds, order=4)
+    >>> context = openmm.Context(water.system, integrator, openmm.Platform.getPlatformByName("Reference"))
+    >>> context.setState(water.state)
+    >>> integrator.check_context(context)  # no periodic box: the rotation stays out of the scaling
+    >>> integrator.removes_rotation
+    True
+    >>> integrator.step(5)
+    >>> state = context.getState(getEnergy=True)
+    >>> residual = state.getKineticEnergy() + state.getPotentialEnergy() - integrator.reference_energy
+    >>> abs(residual) < integrator.energy_tolerance  # H held at E_ref
+    True
     """
 
     _kind = 3

@@ -42,19 +42,35 @@ def restore_integrator(
 
     Parameters
     ----------
-    integrator
+    integrator : openmm.Integrator
         An integrator object.
 
     Returns
     -------
-    The same object, now an instance of :class:`~.rattle.RattleIntegrator`,
-    :class:`~.rescale.RattleRescaleIntegrator`, :class:`~.alpha_rattle.AlphaRattleIntegrator`
-    or (a program of the energy mode) :class:`~.energy_mode.AlphaRattleEnergyIntegrator`.
+    RattleIntegrator or RattleRescaleIntegrator or AlphaRattleIntegrator
+        The same object, now an instance of :class:`~.rattle.RattleIntegrator`,
+        :class:`~.rescale.RattleRescaleIntegrator`, :class:`~.alpha_rattle.AlphaRattleIntegrator`
+        or (a program of the energy mode) :class:`~.energy_mode.AlphaRattleEnergyIntegrator`.
 
     Raises
     ------
     TypeError
         If ``integrator`` was not made by this package.
+
+    Examples
+    --------
+    An integrator read back from XML (as from a saved simulation):
+
+    >>> import openmm, openmm.unit as unit
+    >>> from openmm_alphaprk import AlphaRattleIntegrator, restore_integrator
+    >>> xml = openmm.XmlSerializer.serialize(AlphaRattleIntegrator(2 * unit.femtoseconds, 0.1, order=4))
+    >>> plain = openmm.XmlSerializer.deserialize(xml)
+    >>> type(plain).__name__
+    'CustomIntegrator'
+    >>> restore_integrator(plain)
+    AlphaRattleIntegrator(timestep=0.002 ps, alpha=0.1, composition='suzuki5')
+    >>> plain.alpha  # the same object, with its class back
+    0.1
     """
     if isinstance(integrator, _StepProgram):
         return integrator
