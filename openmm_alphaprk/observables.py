@@ -238,6 +238,38 @@ class EnergyDrift:
 
     E_ref is the total energy of the first sample, the start state. RMS and max
     |H − E_ref| are over the samples after the first (:func:`residual_statistics`).
+
+    Attributes
+    ----------
+    e_ref : float
+        Total energy of the first sample (kJ/mol).
+    samples : int
+        Number of samples, the first included.
+    duration_ps : float
+        Time from the first sample to the last (ps).
+    drift_kj_per_mol_per_ns, drift_standard_error_kj_per_mol_per_ns : float
+        Slope of the line fitted to H − E_ref (:func:`fit_drift`) and its standard error.
+    drift_per_dof, drift_per_dof_standard_error : float
+        The same per degree of freedom (kJ/mol/ns).
+    drift_resolved : bool
+        Whether |drift| is at least :data:`DRIFT_RESOLVED_AT` standard errors.
+    scatter_about_fit : float
+        RMS of the samples about the line (kJ/mol).
+    rms_residual, max_abs_residual : float
+        RMS and max |H − E_ref| after the first sample (kJ/mol).
+
+    Examples
+    --------
+    Made by :func:`energy_drift`:
+
+    >>> from openmm_alphaprk.analysis import energy_drift
+    >>> drift = energy_drift([0.0, 1.0, 2.0, 3.0], [-100.0, -99.9, -99.8, -99.7], dof=10)
+    >>> drift.e_ref, drift.samples, drift.duration_ps
+    (-100.0, 4, 3.0)
+    >>> round(drift.drift_kj_per_mol_per_ns, 6), round(drift.drift_per_dof, 6)
+    (100.0, 10.0)
+    >>> sorted(drift.as_dict())[:2]
+    ['drift_kj_per_mol_per_ns', 'drift_per_dof']
     """
 
     e_ref: float
@@ -261,18 +293,41 @@ def energy_drift(times_ps: np.ndarray, total_energies: np.ndarray, dof: int) -> 
 
     Parameters
     ----------
-    times_ps
+    times_ps : array_like of float
         Sample times (ps).
-    total_energies
+    total_energies : array_like of float
         Total energies (kJ/mol); the first is E_ref (the start state). A trace of
         H − E_ref that starts at 0 gives the same result.
-    dof
+    dof : int
         Degrees of freedom, for the drift per degree of freedom.
+
+    Returns
+    -------
+    EnergyDrift
 
     Raises
     ------
     ValueError
         With fewer than two samples, or a value that is not finite.
+
+    Examples
+    --------
+    The ``energies.csv`` of a short RATTLE run (columns: step, time, potential, kinetic,
+    total, temperature):
+
+    >>> import os, tempfile
+    >>> from openmm_alphaprk.analysis import energy_drift
+    >>> from openmm_alphaprk.runs import read_energies, run_nve
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     run = os.path.join(folder, "run")
+    ...     summary = run_nve("water-cluster", "rattle", run, steps=20, energy_interval=5,
+    ...                       platform="Reference", progress=False)
+    ...     energies = read_energies(os.path.join(run, "energies.csv"))
+    >>> drift = energy_drift(energies[:, 1], energies[:, 4], summary.degrees_of_freedom)
+    >>> drift.samples, round(drift.duration_ps, 6)
+    (5, 0.04)
+    >>> drift.rms_residual == summary.rms_residual  # the run's summary is this fit
+    True
     """
     times_ps = np.asarray(times_ps, dtype=float)
     total = np.asarray(total_energies, dtype=float)

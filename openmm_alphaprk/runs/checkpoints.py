@@ -32,15 +32,52 @@ class RunInterrupted(KeyboardInterrupt):
 
     A ``KeyboardInterrupt``, so code that stops on Ctrl-C still does.
 
-    Attributes
+    Parameters
     ----------
-    output
+    message : str
+        What happened and what the same call will do next.
+    output : pathlib.Path
         The run directory.
-    step
+    step : int
         The step the run stopped at.
-    checkpoint_step
+    checkpoint_step : int or None
         The step of the checkpoint on disk, from which the same call resumes; None if
         there is none (the same call starts again from step 0).
+
+    Attributes
+    ----------
+    output : pathlib.Path
+        The run directory.
+    step : int
+        The step the run stopped at.
+    checkpoint_step : int or None
+        The step of the checkpoint on disk, from which the same call resumes; None if
+        there is none (the same call starts again from step 0).
+
+    Examples
+    --------
+    A reporter that presses Ctrl-C at step 10; the same call then resumes from there:
+
+    >>> import os, tempfile
+    >>> from openmm_alphaprk.runs import RunInterrupted, RunOptions, run_nve
+    >>> class CtrlC:
+    ...     def describeNextReport(self, simulation):
+    ...         return {"steps": 10 - simulation.currentStep % 10, "periodic": None, "include": []}
+    ...     def report(self, simulation, state):
+    ...         raise KeyboardInterrupt
+    >>> options = RunOptions(steps=20, energy_interval=5, platform="Reference", progress=False)
+    >>> with tempfile.TemporaryDirectory() as folder:  # doctest: +ELLIPSIS
+    ...     run = os.path.join(folder, "run")
+    ...     try:
+    ...         run_nve("water-cluster", "rattle", run, options, extra_reporters=[CtrlC()])
+    ...     except RunInterrupted as interruption:
+    ...         print(interruption)
+    ...         print(interruption.step, interruption.checkpoint_step)
+    ...     summary = run_nve("water-cluster", "rattle", run, options)  # resumes
+    ...     print(summary.steps, summary.steps_this_call)
+    run in .../run interrupted at step 10 of 20; checkpoint written: the same command resumes it from step 10.
+    10 10
+    20 10
     """
 
     def __init__(self, message: str, output: Path, step: int, checkpoint_step: int | None) -> None:

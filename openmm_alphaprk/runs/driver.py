@@ -50,7 +50,24 @@ from .summary import RunSummary, read_summary, summarize
 
 
 class RunFailedError(RuntimeError):
-    """Raised when a run stops on a NaN or a failed step; the output up to then is kept."""
+    """Raised when a run stops on a NaN or a failed step; the output up to then is kept.
+
+    Examples
+    --------
+    A 20 fs step blows the water cluster up at once (the driver warns first):
+
+    >>> import os, tempfile, warnings
+    >>> from openmm_alphaprk.runs import run_nve
+    >>> with tempfile.TemporaryDirectory() as folder, warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     run_nve("water-cluster", "rattle", os.path.join(folder, "run"), steps=20, timestep=0.02,
+    ...             platform="Reference", progress=False)  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    openmm_alphaprk.runs.driver.RunFailedError: run in .../run stopped at step 1 of 20 with ...
+    >>> print(caught[0].message)  # doctest: +ELLIPSIS
+    water-cluster: a 20 fs step is above about 4.5 fs, ...
+    """
 
 
 @dataclass
@@ -80,21 +97,23 @@ def run_nve(
 
     Parameters
     ----------
-    system
+    system : str or PreparedSystem
         A system name (``alphaprk systems``) or a :class:`~openmm_alphaprk.systems.PreparedSystem`.
-    integrator
-        ``rattle``, ``verlet``, ``energy`` or ``alpha=<number>``; see
+    integrator : str or IntegratorSpec
+        ``rattle``, ``rattle4+rescale``, ``verlet``, ``energy4``, ``alpha=<number>``, …; see
         :mod:`openmm_alphaprk.runs.integrator_names`.
-    output
+    output : str or os.PathLike
         Run directory; created if missing. If it holds this run (same settings except
         ``steps``), the run resumes from its last checkpoint, or is extended to ``steps``.
-    options, **keywords
+    options : RunOptions, optional
         A :class:`~openmm_alphaprk.runs.RunOptions` (steps, timestep, platform,
         precision, constraint_tolerance, intervals, checkpoint_seconds, velocity_seed,
-        cpu_threads, cache_dir, progress), and/or its fields as keywords (they replace
-        the ``options``' own), e.g. ``steps=2000, timestep=0.001``.
-    extra_reporters
+        cpu_threads, cache_dir, progress); default: the defaults.
+    extra_reporters : list of OpenMM reporters, optional
         More OpenMM reporters, added after the run's own.
+    **keywords
+        Fields of :class:`~openmm_alphaprk.runs.RunOptions`, which replace the
+        ``options``' own, e.g. ``steps=2000, timestep=0.001``.
 
     Returns
     -------
@@ -114,6 +133,30 @@ def run_nve(
         On Ctrl-C (or another KeyboardInterrupt) while the run steps or writes its
         summary, checkpointed where the files are complete (see :mod:`.checkpoints`);
         the message says from which step the same call resumes.
+
+    Examples
+    --------
+    RATTLE + rescaling with Suzuki's composition (``rattle4+rescale``) on the shipped
+    water cluster, 20 steps; a second call extends the same run to 40:
+
+    >>> import os, tempfile
+    >>> from openmm_alphaprk.runs import run_nve
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     run = os.path.join(folder, "run")
+    ...     summary = run_nve("water-cluster", "rattle4+rescale", run, steps=20, energy_interval=5,
+    ...                       platform="Reference", progress=False)
+    ...     files = sorted(name for name in os.listdir(run) if not name.startswith("."))
+    ...     longer = run_nve("water-cluster", "rattle4+rescale", run, steps=40, energy_interval=5,
+    ...                      platform="Reference", progress=False)
+    >>> summary.integrator, summary.steps, summary.energy_samples, summary.force_evaluations_per_step
+    ('rattle4+rescale', 20, 4, 5.0)
+    >>> summary.rms_residual < 1e-6  # kJ/mol: H held at E_ref
+    True
+    >>> files  # doctest: +NORMALIZE_WHITESPACE
+    ['checkpoint.chk', 'energies.csv', 'run.json', 'summary.json', 'system.xml',
+     'topology.pdb', 'trajectory.dcd']
+    >>> longer.steps, longer.steps_this_call
+    (40, 20)
     """
     spec = parse_integrator(integrator)
     run = prepare_run(system, spec, Path(output), RunOptions.build(options, **keywords))

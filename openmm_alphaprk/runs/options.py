@@ -43,51 +43,70 @@ class RunOptions:
 
     Attributes
     ----------
-    steps
+    steps : int, default 1000
         Total number of steps of the run.
-    timestep
+    timestep : openmm.unit.Quantity or float, default 0.002
         Step size: a Quantity, or a number in ps (default 0.002 ps = 2 fs).
-    platform
+    platform : str, default "CPU"
         OpenMM platform name (``CPU``, ``Reference``, ``CUDA``, ``OpenCL``).
-    precision
+    precision : {"single", "mixed", "double"}, optional
         ``single``, ``mixed`` or ``double`` for platforms with a Precision property
         (CUDA, OpenCL); None keeps the platform's default. Reference is double; CPU
         has no setting.
-    constraint_tolerance
+    constraint_tolerance : float, default 1e-8
         Relative tolerance of SHAKE/SETTLE/CCMA and the velocity constraints.
-    energy_interval, trajectory_interval, checkpoint_interval
-        Steps between energy rows, DCD frames and checkpoints. Energies cost one extra
-        force evaluation each on most platforms.
-    controller_interval
+    energy_interval, trajectory_interval, checkpoint_interval : int
+        Steps between energy rows, DCD frames and checkpoints (defaults 10, 100, 500).
+        Energies cost one extra force evaluation each on most platforms.
+    controller_interval : int, optional
         Steps between rows of the energy mode's ``controller.csv``; None (default): the
         energy interval, so that the rows fall on the steps of the energy rows and do
         not make ``Simulation`` step one step at a time. Statistics over every step come
         from the integrator's totals, whatever the interval.
-    checkpoint_seconds
+    checkpoint_seconds : openmm.unit.Quantity or float, default 60.0
         Wall time (a Quantity, or a number in s) after which a checkpoint is also
         written between the step-count ones (checked at the end of every energy
         interval; default 60 s): an interruption loses at most about this much work.
         Not part of the run's identity.
-    velocity_interval
+    velocity_interval : int, optional
         Steps between frames of ``velocities.dcd`` (velocities in Å/ps stored as DCD
         coordinates, see :class:`~openmm_alphaprk.runs.VelocityDCDReporter`); None
         (default) writes none.
-    velocity_seed
+    velocity_seed : int, optional
         None (default): start from the prepared state's velocities. An integer: draw new
         Maxwell–Boltzmann velocities at the definition's temperature with this seed
         (constrained components removed), for independent runs from the same structure.
-    cpu_threads
+    cpu_threads : int, optional
         Threads of the CPU platform (default: OpenMM's choice, all cores); not part of
         the run's identity.
-    cache_dir
+    cache_dir : str or os.PathLike, optional
         Cache of equilibrated systems (default: see :func:`~openmm_alphaprk.systems.default_cache_dir`).
-    progress
+    progress : bool, default True
         Show progress bars on stderr.
 
     Raises
     ------
     ValueError, TypeError
         For bad numbers or units.
+
+    Examples
+    --------
+    >>> import openmm.unit as unit
+    >>> from openmm_alphaprk.runs import RunOptions
+    >>> options = RunOptions(steps=500, timestep=1 * unit.femtoseconds, platform="Reference")
+    >>> options.timestep  # normalized to ps
+    0.001
+    >>> options.intervals
+    {'energy_interval': 10, 'trajectory_interval': 100, 'checkpoint_interval': 500, 'controller_interval': 10}
+    >>> RunOptions.build(options, steps=2000).steps  # a copy with fields replaced
+    2000
+    >>> platform, properties = options.openmm_platform()
+    >>> platform.getName(), properties
+    ('Reference', {})
+    >>> RunOptions(steps=0)  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    openmm_alphaprk._units.InputError: steps must be ...
     """
 
     steps: int = 1000

@@ -65,11 +65,11 @@ class AlphaControllerReporter:
 
     Parameters
     ----------
-    file
+    file : str or os.PathLike or io.TextIOBase
         A path, or an open text file.
-    reportInterval
+    reportInterval : int, default 1
         Steps between rows.
-    append
+    append : bool, default False
         Append to an existing file instead of overwriting it (for a resumed run);
         the header is then not written again.
 
@@ -80,6 +80,29 @@ class AlphaControllerReporter:
         :class:`~openmm_alphaprk.AlphaRattleEnergyIntegrator` (the energy mode).
     ValueError
         From ``report``, if the residual is not finite (fail fast on NaN).
+
+    Examples
+    --------
+    The energy mode (``energy4``) on the shipped water cluster, a row every 2 steps:
+
+    >>> import io, openmm, openmm.app as app, openmm.unit as unit
+    >>> from openmm_alphaprk import AlphaRattleEnergyIntegrator
+    >>> from openmm_alphaprk.runs import AlphaControllerReporter
+    >>> from openmm_alphaprk.systems import prepare_system
+    >>> water = prepare_system("water-cluster")
+    >>> integrator = AlphaRattleEnergyIntegrator(2 * unit.femtoseconds, order=4)
+    >>> platform = openmm.Platform.getPlatformByName("Reference")
+    >>> simulation = app.Simulation(water.topology, water.system, integrator, platform)
+    >>> simulation.context.setState(water.state)
+    >>> integrator.check_context(simulation.context)
+    >>> rows = io.StringIO()
+    >>> simulation.reporters.append(AlphaControllerReporter(rows, reportInterval=2))
+    >>> simulation.step(4)
+    >>> lines = rows.getvalue().splitlines()
+    >>> lines[0].split(",")[:4]  # the header: COLUMNS
+    ['step', 'time (ps)', 'alpha', 'H - E_ref (kJ/mol)']
+    >>> [line.split(",")[0] for line in lines[1:]]  # the steps of the rows
+    ['2', '4']
     """
 
     def __init__(
@@ -223,26 +246,49 @@ class ControllerSummary:
 
     Attributes
     ----------
-    steps
+    steps : int
         Steps the statistics cover: the integrator's steps when its totals are given,
         else the number of rows.
-    rows
+    rows : int
         Rows of ``controller.csv`` (sampled steps) summarized.
-    alpha_percentiles
-        α* percentiles over the rows.
-    rms_residual, max_abs_residual
+    alpha_percentiles : dict of str to float
+        α* percentiles over the rows (``{"p1": …, "p99": …}``).
+    rms_residual, max_abs_residual : float
         RMS and max |H − E_ref| (E_ref: the integrator's reference energy, the start
         state's total energy) over every step when the integrator accumulates them,
-        else over the rows; ``residuals_over`` says which (:data:`EVERY_STEP` or :data:`ROWS`).
-    fraction_within_tolerance
+        else over the rows; ``residuals_over`` says which.
+    residuals_over : str
+        :data:`EVERY_STEP` or :data:`ROWS`: what ``rms_residual`` and
+        ``max_abs_residual`` cover.
+    fraction_within_tolerance : float
         Steps that ended with |H − E_ref| ≤ the energy tolerance.
-    fraction_fallen_back
+    fraction_fallen_back : float
         Steps that ended with |H − E_ref| above the energy tolerance: α* stopped at a
         bound, or after ``max_trials`` trials, without reaching it; the step is kept.
-    fraction_at_bound
+    fraction_at_bound : float
         Steps whose α* sat at a bound of ``alpha_bounds``.
-    force_evaluations_per_step
+    force_evaluations_per_step : float
         Mean force evaluations per step.
+
+    Examples
+    --------
+    Made by :func:`summarize_controller` (here from two hand-written rows) and
+    :meth:`AlphaControllerReporter.summary`:
+
+    >>> import numpy as np
+    >>> from openmm_alphaprk.runs import summarize_controller
+    >>> rows = np.array([
+    ...     # step, time, alpha, H - E_ref, E_ref, trials, evaluations, fell back, at bound, change
+    ...     [2, 0.004, 0.01, 2e-5, -2274.5, 2, 6, 0, 0, 1e-9],
+    ...     [4, 0.008, 0.03, -4e-5, -2274.5, 3, 7, 0, 0, 1e-9],
+    ... ])
+    >>> summary = summarize_controller(rows)
+    >>> summary.steps, summary.residuals_over, summary.force_evaluations_per_step
+    (2, 'controller.csv rows', 6.5)
+    >>> round(summary.alpha_percentiles["p50"], 6), round(summary.rms_residual, 8)
+    (0.02, 3.162e-05)
+    >>> sorted(summary.as_dict())[:3]
+    ['alpha_percentiles', 'force_evaluations_per_step', 'fraction_at_bound']
     """
 
     steps: int
@@ -262,7 +308,39 @@ class ControllerSummary:
 
 
 def read_controller_csv(path: str | os.PathLike) -> np.ndarray:
-    """Read a file written by :class:`AlphaControllerReporter` into an array (rows × columns)."""
+    """Read a file written by :class:`AlphaControllerReporter` into an array (rows × columns).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The CSV file (``controller.csv`` of a run directory of the energy mode).
+
+    Returns
+    -------
+    numpy.ndarray
+        One row per report, the columns of :data:`COLUMNS`.
+
+    Raises
+    ------
+    ValueError
+        If the file does not have the columns of :data:`COLUMNS`.
+
+    Examples
+    --------
+    The ``controller.csv`` of an ``energy4`` run:
+
+    >>> import os, tempfile
+    >>> from openmm_alphaprk.runs import read_controller_csv, run_nve
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     run = os.path.join(folder, "run")
+    ...     _ = run_nve("water-cluster", "energy4", run, steps=8, energy_interval=2,
+    ...                 platform="Reference", progress=False)
+    ...     rows = read_controller_csv(os.path.join(run, "controller.csv"))
+    >>> rows.shape  # a row every energy interval, 10 columns
+    (4, 10)
+    >>> rows[:, 0]  # the steps
+    array([2., 4., 6., 8.])
+    """
     data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
     if data.shape[1] != len(COLUMNS):
         raise InputError(
@@ -278,16 +356,40 @@ def summarize_controller(
 
     Parameters
     ----------
-    rows
+    rows : numpy.ndarray
         Array with the columns of :data:`COLUMNS` (from :func:`read_controller_csv`).
-    energy_tolerance
+    energy_tolerance : float, optional
         If given (kJ/mol), "within tolerance" is |H − E_ref| ≤ this over the rows;
         otherwise the integrator's verdict (its totals, or the rows' ``fell back`` column).
-    totals
+    totals : dict, optional
         ``integrator.controller_totals()``: counts over every step. The fractions and
         force evaluations per step are taken from it, and RMS and max |H − E_ref| when
         it has ``rms_residual`` and ``max_abs_residual``; without it, everything comes
         from the rows.
+
+    Returns
+    -------
+    ControllerSummary
+
+    Raises
+    ------
+    ValueError
+        If there are no rows.
+
+    Examples
+    --------
+    Two hand-written rows, the tolerance given:
+
+    >>> import numpy as np
+    >>> from openmm_alphaprk.runs import summarize_controller
+    >>> rows = np.array([
+    ...     # step, time, alpha, H - E_ref, E_ref, trials, evaluations, fell back, at bound, change
+    ...     [2, 0.004, 0.01, 2e-5, -2274.5, 2, 6, 0, 0, 1e-9],
+    ...     [4, 0.008, 0.03, -4e-5, -2274.5, 3, 7, 0, 0, 1e-9],
+    ... ])
+    >>> summary = summarize_controller(rows, energy_tolerance=3e-5)
+    >>> summary.fraction_within_tolerance, summary.max_abs_residual
+    (0.5, 4e-05)
     """
     rows = np.asarray(rows, dtype=float)
     if rows.ndim != 2 or rows.shape[0] == 0:
@@ -330,17 +432,45 @@ class VelocityDCDReporter:
 
     Parameters
     ----------
-    file
+    file : str or os.PathLike
         Path of the DCD file.
-    reportInterval
+    reportInterval : int
         Steps between frames.
-    append
+    append : bool, default False
         Append to an existing file written by this reporter (for a resumed run).
 
     Raises
     ------
     ValueError
         From ``report``, if a velocity is not finite (fail fast on NaN).
+
+    Examples
+    --------
+    Velocities of the shipped water cluster every 2 steps, read back with MDAnalysis
+    (``open_universe`` reads a run directory's ``topology.pdb`` with one of its DCD
+    files):
+
+    >>> import os, tempfile, openmm, openmm.app as app, openmm.unit as unit
+    >>> from openmm_alphaprk import RattleIntegrator
+    >>> from openmm_alphaprk.runs import VelocityDCDReporter
+    >>> from openmm_alphaprk.runs.rundir import open_universe
+    >>> from openmm_alphaprk.systems import prepare_system
+    >>> water = prepare_system("water-cluster")
+    >>> platform = openmm.Platform.getPlatformByName("Reference")
+    >>> simulation = app.Simulation(water.topology, water.system, RattleIntegrator(0.002), platform)
+    >>> simulation.context.setState(water.state)
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     simulation.reporters.append(VelocityDCDReporter(os.path.join(folder, "velocities.dcd"), 2))
+    ...     simulation.step(4)
+    ...     with open(os.path.join(folder, "topology.pdb"), "w") as pdb:
+    ...         app.PDBFile.writeFile(water.topology, water.state.getPositions(), pdb)
+    ...     universe = open_universe(folder, "velocities.dcd")
+    ...     frames = universe.trajectory.n_frames
+    ...     last = universe.trajectory[-1].positions / 10  # Å/ps → nm/ps
+    >>> state = simulation.context.getState(getVelocities=True)
+    >>> velocities = state.getVelocities(asNumpy=True).value_in_unit(unit.nanometers / unit.picoseconds)
+    >>> frames, bool(abs(last - velocities).max() < 1e-5)  # stored as float32
+    (2, True)
     """
 
     def __init__(self, file: str | os.PathLike, reportInterval: int, append: bool = False):

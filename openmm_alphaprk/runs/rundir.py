@@ -69,7 +69,23 @@ _IMPLIED = {"controller_interval": 1}
 
 
 class RunDirectoryError(InputError):
-    """Raised when an output directory holds something other than this run."""
+    """Raised when an output directory holds something other than this run.
+
+    Examples
+    --------
+    The same directory, another step size:
+
+    >>> import os, tempfile
+    >>> from openmm_alphaprk.runs import run_nve
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     run = os.path.join(folder, "run")
+    ...     _ = run_nve("water-cluster", "rattle", run, steps=10, platform="Reference", progress=False)
+    ...     run_nve("water-cluster", "rattle", run, steps=10, timestep=0.001, platform="Reference",
+    ...             progress=False)  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    openmm_alphaprk.runs.rundir.RunDirectoryError: output directory .../run holds a different run (...
+    """
 
 
 def run_parameters(prepared: PreparedSystem, spec: IntegratorSpec, options: RunOptions) -> dict[str, Any]:
@@ -205,7 +221,40 @@ def write_parameters(path: Path, parameters: dict[str, Any]) -> None:
 
 
 def read_energies(path: str | os.PathLike) -> np.ndarray:
-    """Rows of ``energies.csv``: step, time (ps), potential, kinetic, total (kJ/mol), temperature (K)."""
+    """Rows of ``energies.csv``: step, time (ps), potential, kinetic, total (kJ/mol), temperature (K).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The ``energies.csv`` of a run directory (OpenMM's ``StateDataReporter`` CSV).
+
+    Returns
+    -------
+    numpy.ndarray
+        One row per report, the start state's first.
+
+    Raises
+    ------
+    ValueError
+        If the file holds no rows.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> import numpy as np
+    >>> from openmm_alphaprk.runs import read_energies, run_nve
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     run = os.path.join(folder, "run")
+    ...     _ = run_nve("water-cluster", "rattle", run, steps=20, energy_interval=5,
+    ...                 platform="Reference", progress=False)
+    ...     energies = read_energies(os.path.join(run, "energies.csv"))
+    >>> energies[:, 0]  # steps
+    array([ 0.,  5., 10., 15., 20.])
+    >>> energies.shape
+    (5, 6)
+    >>> bool(np.allclose(energies[:, 2] + energies[:, 3], energies[:, 4]))  # potential + kinetic = total
+    True
+    """
     data = np.loadtxt(path, delimiter=",", comments="#", ndmin=2)
     if data.shape[0] == 0:
         raise InputError(f"{path} holds no energy rows.")

@@ -41,6 +41,76 @@ class RunSummary:
     :func:`~openmm_alphaprk.observables.energy_drift` of the ``energy_samples`` rows
     after it. ``controller`` (energy mode) is a
     :class:`~openmm_alphaprk.runs.ControllerSummary` over every step of the run.
+
+    Attributes
+    ----------
+    system : str
+        Name of the system.
+    integrator : str
+        Name of the integrator (:mod:`~openmm_alphaprk.runs.integrator_names`).
+    n_atoms : int
+        Particles of the System.
+    degrees_of_freedom : int
+        3N (particles with mass) minus the constraints, minus 3 with a ``CMMotionRemover``.
+    timestep_fs : float
+        Step size (fs).
+    steps : int
+        Steps of the run, resumed calls included.
+    simulated_ps : float
+        Simulated time (ps).
+    platform : str
+        The OpenMM platform that ran it.
+    e_ref : float
+        Total energy of the start state (kJ/mol).
+    drift_per_dof, drift_per_dof_standard_error : float
+        Drift of H − E_ref and its standard error (kJ/mol/ns per degree of freedom).
+    drift_resolved : bool
+        Whether the drift is at least two standard errors.
+    rms_residual, max_abs_residual : float
+        RMS and max |H − E_ref| over the energy rows after the start (kJ/mol).
+    energy_samples : int
+        Energy rows after the start.
+    max_relative_constraint_error : float
+        Largest |r − d|/d over the constraints at the end.
+    max_constraint_velocity_error : float
+        Largest |relative velocity along a constrained pair| at the end (nm/ps).
+    ns_per_day : float
+        Speed of this call.
+    wall_seconds : float
+        Wall time of this call (s).
+    steps_this_call : int
+        Steps taken by this call (fewer than ``steps`` when it resumed).
+    force_evaluations_per_step : float
+        Mean force evaluations per step.
+    velocity_verlet : bool
+        Whether the velocities are full-step ones (False for ``verlet``, OpenMM's leapfrog).
+    controller : dict
+        The energy mode's :class:`~openmm_alphaprk.runs.ControllerSummary` as a dict;
+        empty for the other integrators.
+    momentum_change : dict
+        Without a periodic box, the largest change of a component of linear and
+        angular momentum over the run; empty with one.
+    notes : list of str
+        Caveats (leapfrog velocities) and what a rescaling removed.
+
+    Examples
+    --------
+    Returned by :func:`~openmm_alphaprk.runs.run_nve` and written as ``summary.json``:
+
+    >>> import json, os, tempfile
+    >>> from openmm_alphaprk.runs import RunSummary, run_nve
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     run = os.path.join(folder, "run")
+    ...     summary = run_nve("water-cluster", "rattle", run, steps=20, energy_interval=5,
+    ...                       platform="Reference", progress=False)
+    ...     with open(os.path.join(run, "summary.json")) as stored:
+    ...         same = RunSummary(**json.load(stored)) == summary
+    >>> same
+    True
+    >>> summary.n_atoms, summary.degrees_of_freedom, summary.simulated_ps, summary.energy_samples
+    (222, 444, 0.04, 4)
+    >>> summary.max_relative_constraint_error < 1e-7, sorted(summary.momentum_change)
+    (True, ['angular_amu_nm2_per_ps', 'angular_start_amu_nm2_per_ps', 'linear_amu_nm_per_ps'])
     """
 
     system: str
