@@ -24,7 +24,7 @@ from conftest import (
     velocities_of,
 )
 
-from openmm_alphaprk import AlphaRattleIntegrator, RattleIntegrator, make_smooth
+from openmm_alphaprk import AlphaRattleEnergyIntegrator, AlphaRattleIntegrator, RattleIntegrator, make_smooth
 from openmm_alphaprk.observables import energy_residuals, rms
 
 CPU = mm.Platform.getPlatformByName("CPU")
@@ -35,7 +35,7 @@ DEAD_SLOPE_SCALE = 5.9e8
 def _energy_mode(order: int) -> AlphaRattleIntegrator:
     """The energy mode at order 2, or on the triple jump (order 4), whose controller these cases measured."""
     composition = {"composition": "triple-jump"} if order == 4 else {}
-    return AlphaRattleIntegrator(2 * unit.femtosecond, alpha="energy", energy_tolerance=0.01, **composition)
+    return AlphaRattleEnergyIntegrator(2 * unit.femtosecond, energy_tolerance=0.01, **composition)
 
 
 def test_inflated_slope_scale_recovers_within_a_dozen_steps(water_box):
@@ -366,7 +366,7 @@ def test_order4_energy_mode_beats_every_fixed_alpha_of_a_scan_on_solvated_villin
         alpha: energy_rms(AlphaRattleIntegrator(0.002, alpha=alpha, composition="triple-jump"))
         for alpha in alphas
     }
-    energy_mode = energy_rms(AlphaRattleIntegrator(0.002, alpha="energy", composition="triple-jump"))
+    energy_mode = energy_rms(AlphaRattleEnergyIntegrator(0.002, composition="triple-jump"))
     assert energy_mode < min(fixed.values()), (energy_mode, fixed)
 
 
@@ -378,9 +378,8 @@ def test_a_step_whose_last_trial_did_worse_ends_in_its_best_trial(solute_in_vacu
     the next step's start, is counted.
     """
     system, positions, velocities = solute_in_vacuum
-    integrator = AlphaRattleIntegrator(
+    integrator = AlphaRattleEnergyIntegrator(
         2 * unit.femtosecond,
-        alpha="energy",
         composition="triple-jump",
         max_trials=2,
         alpha_probe=0.2,
