@@ -147,8 +147,8 @@ def _message(integrator: mm.CustomIntegrator, original: str) -> str:
             "the α: α-RATTLE weighs the force along a step by (1/2 - α, 2α, 1/2 - α), large and of "
             "opposite sign beyond |α| = 1; the step it can take shrinks as 1/sqrt(|α|), its midpoint "
             "iteration converging only while |α|h²ω²/4 < 1 (ω: the fastest motion); use alpha between "
-            f"-{USUAL_ALPHA:g} and {USUAL_ALPHA:g} (alpha=0 is RATTLE; the energy mode, 'energy', "
-            "chooses α every step)",
+            f"-{USUAL_ALPHA:g} and {USUAL_ALPHA:g} (alpha=0 is RATTLE; the energy mode, "
+            "AlphaRattleEnergyIntegrator or energy4, chooses α every step)",
             *start_causes,
         )
     listed = "; ".join(f"({i}) {cause}" for i, cause in enumerate(causes, start=1))
