@@ -13,12 +13,17 @@ RATTLE has no controller to report; its rows use a reporter that reads nothing, 
 asking ``Simulation`` for a report every step costs by itself (one step per ``integrator.step``
 call and a ``getState`` after each).
 
-    python tools/scripts/reporter_cost.py [--system tip3p-2nm] [--platform CPU] [--rounds 15]
+    python tools/scripts/reporter_cost.py [--system tip3p-2nm] [--platform CPU] [--rounds 15] [--json FILE]
+
+``--json`` also writes every row (the steps/s of each round, their median, the ratio to no
+reporter, the time of one report) and the settings of the run, for docs/driver.md.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import os
 import statistics
 import tempfile
 import time
@@ -32,6 +37,7 @@ from openmm_alphaprk.runs.integrator_names import make_integrator
 from openmm_alphaprk.systems import prepare_system
 
 NONE = "no reporter"
+TIMESTEP_PS = 0.002
 
 
 class NullReporter:
@@ -90,6 +96,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--energy4-steps", type=int, default=20, help="steps of energy4 per round and row")
     parser.add_argument("--rattle-steps", type=int, default=100, help="steps of RATTLE per round and row")
     parser.add_argument("--repeats", type=int, default=2000, help="reports timed by themselves")
+    parser.add_argument("--json", help="also write the rows and the run's settings to this file")
     args = parser.parse_args(argv)
     prepared = prepare_system(args.system, progress=False)
     platform = mm.Platform.getPlatformByName(args.platform)
@@ -97,7 +104,7 @@ def main(argv: list[str] | None = None) -> None:
     rows = _rows(Path(tempfile.mkdtemp(prefix="reporter-cost-")))
     simulations = {}
     for (name, how), make in rows.items():
-        integrator = make_integrator(name, 0.002)
+        integrator = make_integrator(name, TIMESTEP_PS)
         simulation = app.Simulation(prepared.topology, prepared.system, integrator, platform, properties)
         simulation.context.setState(prepared.state)
         if make is not None:
@@ -115,12 +122,39 @@ def main(argv: list[str] | None = None) -> None:
     print(f"{args.system} ({prepared.n_atoms} atoms), platform {args.platform}{threads}")
     print("| integrator | reporting | steps/s (median of rounds) | × no reporter | one report (µs) |")
     print("| --- | --- | ---: | ---: | ---: |")
+    rows = []
     for (name, how), values in rates.items():
         median = statistics.median(values)
         base = statistics.median(rates[(name, NONE)])
         simulation = simulations[(name, how)]
-        report = f"{_report_time(simulation, args.repeats):.0f}" if simulation.reporters else "–"
+        report_us = _report_time(simulation, args.repeats) if simulation.reporters else None
+        report = "–" if report_us is None else f"{report_us:.0f}"
         print(f"| {name} | {how} | {median:.1f} | {median / base:.3f} | {report} |")
+        rows.append(
+            {
+                "integrator": name,
+                "reporting": how,
+                "steps_per_s_rounds": values,
+                "steps_per_s": median,
+                "ratio_to_no_reporter": median / base,
+                "report_us": report_us,
+            }
+        )
+    if args.json:
+        settings = {
+            "system": args.system,
+            "atoms": prepared.n_atoms,
+            "platform": args.platform,
+            "threads": args.threads,
+            "rounds": args.rounds,
+            "energy4_steps": args.energy4_steps,
+            "rattle_steps": args.rattle_steps,
+            "repeats": args.repeats,
+            "timestep_fs": TIMESTEP_PS * 1000,
+            "load": list(os.getloadavg()),
+            "openmm": mm.__version__,
+        }
+        Path(args.json).write_text(json.dumps({"settings": settings, "rows": rows}, indent=1), encoding="utf-8")
 
 
 if __name__ == "__main__":
