@@ -38,24 +38,45 @@ class PreparedSystem:
 
     Attributes
     ----------
-    name, definition
-        Which definition it was built from.
-    key
+    name : str
+        Name of the definition it was built from.
+    definition : SystemDefinition
+        The definition it was built from.
+    key : str
         Identifies the start state: for a shipped state the hash of the definition's
         content and the builder version (:func:`~.shipped.shipped_key`), for a state
         built here also of the OpenMM version (:func:`system_key`).
-    topology, system, state
-        The OpenMM objects; ``state`` holds positions, velocities and box vectors.
-    path
+    topology : openmm.app.Topology
+        The topology (residues, atoms, bonds).
+    system : openmm.System
+        The System.
+    state : openmm.State
+        The start state: positions, velocities and box vectors.
+    path : pathlib.Path or None
         The shipped state file or the cache folder the state was read from or written
         to (None if built without a cache).
-    source
+    source : {"shipped", "cache", "built"}
         ``"shipped"`` (the package's state), ``"cache"`` (read from the cache) or
         ``"built"`` (minimized and equilibrated by this call).
-    changes
+    changes : tuple of str
         What was changed to make a user's files ready for NVE (LJ switch, Ewald
         tolerance, forces removed, hydrogen masses), one line each; empty for the
         package's own systems, which are built ready.
+
+    Examples
+    --------
+    Returned by :func:`prepare_system`:
+
+    >>> from openmm_alphaprk.systems import prepare_system
+    >>> water = prepare_system("water-cluster")
+    >>> water.name, water.source, water.n_atoms, water.changes
+    ('water-cluster', 'shipped', 222, ())
+    >>> water.path.name
+    'water-cluster.xml.gz'
+    >>> water.positions.shape, water.velocities.shape  # nm, nm/ps
+    ((222, 3), (222, 3))
+    >>> water.system.getNumConstraints()  # rigid water: three per molecule
+    222
     """
 
     name: str
@@ -106,6 +127,23 @@ def default_cache_dir() -> Path:
     """Return the cache root.
 
     ``$ALPHAPRK_CACHE_DIR``, else ``$XDG_CACHE_HOME/openmm_alphaprk``, else ``~/.cache/openmm_alphaprk``.
+
+    Returns
+    -------
+    pathlib.Path
+
+    Examples
+    --------
+    >>> import os
+    >>> from pathlib import Path
+    >>> from unittest import mock
+    >>> from openmm_alphaprk.systems import CACHE_ENV, default_cache_dir
+    >>> with mock.patch.dict(os.environ, {CACHE_ENV: "/scratch/alphaprk-cache"}):
+    ...     default_cache_dir() == Path("/scratch/alphaprk-cache")
+    True
+    >>> with mock.patch.dict(os.environ, {CACHE_ENV: "", "XDG_CACHE_HOME": "/scratch/cache"}):
+    ...     default_cache_dir() == Path("/scratch/cache/openmm_alphaprk")
+    True
     """
     if os.environ.get(CACHE_ENV):
         return Path(os.environ[CACHE_ENV]).expanduser()
@@ -149,30 +187,52 @@ def prepare_system(
 
     Parameters
     ----------
-    name
+    name : str or os.PathLike or SystemDefinition
         A definition name (``alphaprk systems`` lists them), a path to a ``.toml``
-        file, or a :class:`SystemDefinition`.
-    cache_dir
+        file or to a system file (:func:`~.definitions.file_definition`), or a
+        :class:`SystemDefinition`.
+    cache_dir : str or os.PathLike, optional
         Cache root; default :func:`default_cache_dir`.
-    overrides
+    overrides : dict, optional
         ``{"equilibration.langevin_steps": 10, ...}``: changed entries (their own
         key: cached separately, never started from the original's shipped state).
-    use_cache
+    use_cache : bool, default True
         If false, neither read nor write the cache (a shipped state is still used).
-    rebuild
+    rebuild : bool, default False
         Build the state now even if a shipped or cached one exists; the build
         replaces the cache entry (if ``use_cache``). A definition with a shipped state
         starts from the shipped state again at the next call without ``rebuild``.
-    progress
+    progress : bool, default False
         Show a progress bar while equilibrating.
-    check
+    check : callable, optional
         Called with the System before the (slow) equilibration, e.g. to refuse an
         integrator that cannot run it before any time is spent.
+
+    Returns
+    -------
+    PreparedSystem
 
     Raises
     ------
     UnknownSystemError
         For an unknown name.
+
+    Examples
+    --------
+    A named system starts from the state shipped with the package:
+
+    >>> import openmm
+    >>> from openmm_alphaprk.systems import prepare_system
+    >>> water = prepare_system("tip3p-2nm")
+    >>> water.source, water.n_atoms
+    ('shipped', 774)
+    >>> context = openmm.Context(water.system, openmm.VerletIntegrator(0.001))
+    >>> context.setState(water.state)  # positions, velocities and the box
+
+    ``check`` sees the System first (here it only counts its particles):
+
+    >>> _ = prepare_system("water-cluster", check=lambda system: print(system.getNumParticles()))
+    222
     """
     definition = name if isinstance(name, SystemDefinition) else load_definition(name)
     definition = definition.with_overrides(overrides)
@@ -298,5 +358,40 @@ def _read(path: Path, definition: SystemDefinition, key: str) -> PreparedSystem:
 
 
 def is_cached(definition: SystemDefinition, cache_dir: str | os.PathLike | None = None) -> bool:
-    """Return True if the equilibrated state of ``definition`` is in the cache."""
+    """Return True if the equilibrated state of ``definition`` is in the cache.
+
+    Parameters
+    ----------
+    definition : SystemDefinition
+        The definition (:func:`load_definition`, :func:`~.definitions.file_definition`).
+    cache_dir : str or os.PathLike, optional
+        Cache root; default :func:`default_cache_dir`.
+
+    Returns
+    -------
+    bool
+
+    Examples
+    --------
+    A System of one's own (here the shipped cluster written as OpenMM XML) is cached
+    by its first :func:`prepare_system`; the package's named systems are shipped, not
+    cached:
+
+    >>> import os, tempfile, openmm
+    >>> from openmm_alphaprk.systems import is_cached, load_definition, prepare_system
+    >>> from openmm_alphaprk.systems.definitions import FileOptions, file_definition
+    >>> water = prepare_system("water-cluster")
+    >>> with tempfile.TemporaryDirectory() as cache:
+    ...     for name, obj in (("cluster.xml", water.system), ("state.xml", water.state)):
+    ...         with open(os.path.join(cache, name), "w") as file:
+    ...             _ = file.write(openmm.XmlSerializer.serialize(obj))
+    ...     mine = file_definition(os.path.join(cache, "cluster.xml"),
+    ...                            FileOptions(state=os.path.join(cache, "state.xml")))
+    ...     before = is_cached(mine, cache_dir=cache)
+    ...     _ = prepare_system(mine, cache_dir=cache)
+    ...     after = is_cached(mine, cache_dir=cache)
+    ...     shipped = is_cached(load_definition("water-cluster"), cache_dir=cache)
+    >>> before, after, shipped
+    (False, True, False)
+    """
     return (cache_path(definition, cache_dir) / "state.xml").is_file()

@@ -82,14 +82,32 @@ _EQUILIBRATION_KEYS: dict[str, type | tuple[type, ...]] = {
 
 
 class UnknownSystemError(KeyError):
-    """Raised for a system name with no definition file."""
+    """Raised for a system name with no definition file.
+
+    Examples
+    --------
+    >>> from openmm_alphaprk.systems import load_definition
+    >>> load_definition("tip3p-9nm")  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    openmm_alphaprk.systems.definitions.UnknownSystemError: unknown system 'tip3p-9nm'; choose one of ...
+    """
 
     def __str__(self) -> str:
         return str(self.args[0])
 
 
 class DefinitionError(InputError):
-    """Raised for a definition file with missing or invalid entries."""
+    """Raised for a definition file with missing or invalid entries.
+
+    Examples
+    --------
+    >>> from openmm_alphaprk.systems import water_box_definition
+    >>> water_box_definition(2.0, cutoff=1.0)  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    openmm_alphaprk.systems.definitions.DefinitionError: system 'tip3p-box-2nm': cutoff_nm 1.0 must be ...
+    """
 
 
 @dataclass(frozen=True)
@@ -98,12 +116,24 @@ class SystemDefinition:
 
     Attributes
     ----------
-    name
+    name : str
         The file stem (``tip3p-3nm``), used on the command line.
-    description
+    description : str
         One line for ``alphaprk systems``.
-    build, equilibration
+    build, equilibration : dict
         The tables of the file, as dicts.
+
+    Examples
+    --------
+    >>> from openmm_alphaprk.systems import load_definition
+    >>> definition = load_definition("tip3p-2nm")
+    >>> definition.description
+    'Rigid TIP3P water, cubic 2 nm box (~800 atoms), PME'
+    >>> definition.build["box_edge_nm"], definition.build["cutoff_nm"], definition.build["switch_distance_nm"]
+    (2.0, 0.9, 0.8)
+    >>> shorter = definition.with_overrides({"equilibration.langevin_steps": 10})  # another key
+    >>> shorter.equilibration["langevin_steps"], shorter == definition
+    (10, False)
     """
 
     name: str
@@ -137,12 +167,33 @@ class SystemDefinition:
 
 
 def list_systems() -> list[str]:
-    """Names of the shipped definitions, sorted."""
+    """Names of the shipped definitions, sorted.
+
+    Returns
+    -------
+    list of str
+
+    Examples
+    --------
+    >>> from openmm_alphaprk.systems import list_systems
+    >>> list_systems()
+    ['spce-3nm', 'tip3p-2nm', 'tip3p-3nm', 'tip3p-4nm', 'tip4pew-3nm', 'villin', 'water-cluster']
+    """
     return sorted(path.stem for path in DEFINITIONS_DIR.glob("*.toml"))
 
 
 def load_definition(name: str) -> SystemDefinition:
     """Read and validate the definition called ``name`` (or a path to a ``.toml`` file).
+
+    Parameters
+    ----------
+    name : str or os.PathLike
+        A name of :func:`list_systems`, the path of a ``.toml`` definition file, or
+        the path of a system file (:func:`file_definition`).
+
+    Returns
+    -------
+    SystemDefinition
 
     Raises
     ------
@@ -150,6 +201,25 @@ def load_definition(name: str) -> SystemDefinition:
         If there is no such definition; the message lists the known names.
     DefinitionError
         If the file is invalid.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> from openmm_alphaprk.systems import load_definition
+    >>> from openmm_alphaprk.systems.definitions import DEFINITIONS_DIR
+    >>> load_definition("water-cluster").build["kind"]
+    'water_cluster'
+
+    A definition file of one's own, here the package's 2 nm box made smaller:
+
+    >>> text = (DEFINITIONS_DIR / "tip3p-2nm.toml").read_text()
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = os.path.join(folder, "small-box.toml")
+    ...     with open(path, "w") as file:
+    ...         _ = file.write(text.replace("box_edge_nm = 2.0", "box_edge_nm = 1.9"))
+    ...     mine = load_definition(path)
+    >>> mine.name, mine.build["box_edge_nm"]
+    ('small-box', 1.9)
     """
     if is_system_file(name):
         return file_definition(name)
@@ -307,11 +377,54 @@ def is_system_file(name: str | Path) -> bool:
 def file_definition(path: str | Path, options: FileOptions | None = None) -> SystemDefinition:
     """Return the definition of the system in ``path`` (kind by extension) read with ``options``.
 
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file that names the system: AMBER ``.prmtop``/``.parm7``, CHARMM ``.psf``,
+        GROMACS ``.top``, PDB/PDBx ``.pdb``/``.cif``/``.pdbx`` or OpenMM System ``.xml``
+        (:data:`SUFFIX_KINDS`).
+    options : FileOptions, optional
+        Companion files and how to prepare the System (the command line's options);
+        default :class:`FileOptions`'s defaults.
+
+    Returns
+    -------
+    SystemDefinition
+        Named after the file's stem; :func:`~openmm_alphaprk.systems.prepare_system`
+        reads and prepares it (and caches the start).
+
     Raises
     ------
     DefinitionError
         For a missing file, a missing companion file (coordinates, parameters, force
         field, state) or an option the format does not take, naming the fix.
+
+    Examples
+    --------
+    An OpenMM System XML with its State (here the shipped cluster written out):
+
+    >>> import os, tempfile, openmm
+    >>> from openmm_alphaprk.systems import prepare_system
+    >>> from openmm_alphaprk.systems.definitions import FileOptions, file_definition
+    >>> water = prepare_system("water-cluster")
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     for name, obj in (("cluster.xml", water.system), ("state.xml", water.state)):
+    ...         with open(os.path.join(folder, name), "w") as file:
+    ...             _ = file.write(openmm.XmlSerializer.serialize(obj))
+    ...     definition = file_definition(os.path.join(folder, "cluster.xml"),
+    ...                                  FileOptions(state=os.path.join(folder, "state.xml")))
+    ...     mine = prepare_system(definition, use_cache=False)
+    >>> definition.name, definition.description, sorted(definition.build["files"])
+    ('cluster', 'cluster.xml (openmm_xml)', ['state', 'system'])
+    >>> mine.n_atoms, mine.source, mine.changes  # ready for NVE as it was
+    (222, 'built', ())
+
+    A companion file missing:
+
+    >>> file_definition("cluster.prmtop")  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    openmm_alphaprk.systems.definitions.DefinitionError: system 'cluster': system file ... not found.
     """
     options = options or FileOptions()
     path = Path(path)

@@ -47,7 +47,30 @@ STATES_DIR = Path(__file__).parent / "states"
 
 
 class ShippedStateWarning(UserWarning):
-    """A shipped start state matches a definition but not the topology OpenMM builds here."""
+    """A shipped start state matches a definition but not the topology OpenMM builds here.
+
+    Examples
+    --------
+    A record that claims 3 atoms more than OpenMM builds from the definition (as after a
+    change of OpenMM's Modeller):
+
+    >>> import json, os, tempfile, warnings
+    >>> from openmm_alphaprk.systems import find_shipped_state, load_definition
+    >>> from openmm_alphaprk.systems.shipped import load_shipped_state
+    >>> definition = load_definition("tip3p-2nm")
+    >>> record = json.loads(find_shipped_state(definition).read_text())
+    >>> record["n_atoms"] += 3
+    >>> with tempfile.TemporaryDirectory() as folder, warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     with open(os.path.join(folder, "tip3p-2nm.json"), "w") as file:
+    ...         json.dump(record, file)
+    ...     print(load_shipped_state(definition, folder))  # not used: the system is built instead
+    None
+    >>> caught[0].category.__name__
+    'ShippedStateWarning'
+    >>> print(caught[0].message)  # doctest: +ELLIPSIS
+    the shipped start state of 'tip3p-2nm' (tip3p-2nm.xml.gz) was built with OpenMM ... for 777 atoms; ...
+    """
 
 
 @dataclass
@@ -82,7 +105,24 @@ def topology_fingerprint(topology: app.Topology) -> str:
 def find_shipped_state(definition: SystemDefinition, directory: Path | None = None) -> Path | None:
     """Return the ``.json`` record of the shipped state whose key is ``definition``'s, or None.
 
-    ``directory``: where to look (default :data:`STATES_DIR`).
+    Parameters
+    ----------
+    definition : SystemDefinition
+        The definition; its content (and :data:`~.build.BUILDER_VERSION`) makes the key.
+    directory : str or os.PathLike, optional
+        Where to look (default :data:`STATES_DIR`).
+
+    Returns
+    -------
+    pathlib.Path or None
+
+    Examples
+    --------
+    >>> from openmm_alphaprk.systems import find_shipped_state, load_definition, water_box_definition
+    >>> find_shipped_state(load_definition("tip3p-2nm")).name
+    'tip3p-2nm.json'
+    >>> print(find_shipped_state(water_box_definition(2.0)))  # another content: none shipped
+    None
     """
     key = shipped_key(definition)
     for record in sorted((STATES_DIR if directory is None else Path(directory)).glob("*.json")):

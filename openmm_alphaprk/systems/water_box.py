@@ -33,6 +33,13 @@ def build_water_box(box_size: unit.Quantity | float = 3.0, **options: object) ->
     ``temperature``, ``equilibration_steps``, ``seed``, ``platform``), built without
     the cache.
 
+    Parameters
+    ----------
+    box_size : openmm.unit.Quantity or float, default 3.0
+        Edge of the cubic box (nm).
+    **options
+        The keyword arguments of :func:`water_box_definition`.
+
     Returns
     -------
     PreparedSystem
@@ -45,6 +52,20 @@ def build_water_box(box_size: unit.Quantity | float = 3.0, **options: object) ->
     The defaults make the forces smooth at the cutoff, as an energy-conservation
     study needs (with OpenMM's defaults the energy error of a water box is pairs
     crossing the cutoff, not the integrator's; see :mod:`openmm_alphaprk.smooth_forces`).
+
+    Examples
+    --------
+    A 1.5 nm box with a 0.7 nm cutoff, 10 Langevin steps after the minimization (2–4 s
+    on two cores, nearly all of it the minimization):
+
+    >>> import openmm.unit as unit
+    >>> from openmm_alphaprk import smoothness_problems
+    >>> from openmm_alphaprk.systems import build_water_box
+    >>> box = build_water_box(1.5 * unit.nanometers, cutoff=0.7, equilibration_steps=10)
+    >>> box.name, box.source, box.n_atoms
+    ('tip3p-box-1.5nm', 'built', 306)
+    >>> smoothness_problems(box.system)
+    []
     """
     return prepare_system(water_box_definition(box_size, **options), use_cache=False)
 
@@ -69,25 +90,29 @@ def water_box_definition(
 
     Parameters
     ----------
-    box_size
+    box_size : openmm.unit.Quantity or float, default 3.0
         Edge of the cubic box (nm).
-    model
+    model : str, default "tip3p"
         Water model known to OpenMM's ForceField and Modeller ('tip3p', 'spce', 'tip4pew').
-    cutoff
+    cutoff : openmm.unit.Quantity or float, default 0.9
         Direct-space cutoff (nm); must be below half the box edge.
-    switch_distance
+    switch_distance : openmm.unit.Quantity or float or "auto" or None, default "auto"
         Where the Lennard-Jones switching function starts (nm); ``"auto"`` (the
         default) is cutoff − 0.1 nm, ``None`` switches it off (plain truncation).
-    ewald_error_tolerance
-        PME's ``setEwaldErrorTolerance`` (default 1e-5; OpenMM's default is 5e-4).
-    temperature
+    ewald_error_tolerance : float, default 1e-5
+        PME's ``setEwaldErrorTolerance`` (OpenMM's default is 5e-4).
+    temperature : openmm.unit.Quantity or float, default 300.0
         Langevin equilibration temperature (K).
-    equilibration_steps
+    equilibration_steps : int, default 500
         2 fs Langevin steps after minimization (friction 5/ps).
-    seed
+    seed : int, default 2024
         Seed of the velocity initialisation and the Langevin thermostat.
-    platform
+    platform : str, default "CPU"
         OpenMM platform used for the set-up.
+
+    Returns
+    -------
+    SystemDefinition
 
     Raises
     ------
@@ -96,6 +121,18 @@ def water_box_definition(
         that is no length, None or "auto"; its subclass
         :class:`~openmm_alphaprk.systems.DefinitionError` for a cutoff of half the edge
         or more, or a switch at or beyond the cutoff.
+
+    Examples
+    --------
+    >>> import openmm.unit as unit
+    >>> from openmm_alphaprk.systems import water_box_definition
+    >>> definition = water_box_definition(2.5 * unit.nanometers, model="spce", equilibration_steps=1000)
+    >>> definition.name
+    'spce-box-2.5nm'
+    >>> definition.build["cutoff_nm"], definition.build["switch_distance_nm"]
+    (0.9, 0.8)
+    >>> definition.equilibration["langevin_steps"], definition.equilibration["temperature_K"]
+    (1000, 300.0)
     """
     edge = to_float(box_size, unit.nanometers, "box_size", positive=True)
     rc = to_float(cutoff, unit.nanometers, "cutoff", positive=True)
