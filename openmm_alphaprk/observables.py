@@ -360,7 +360,30 @@ def masses(system: mm.System) -> np.ndarray:
 
 
 def system_constraints(system: mm.System) -> tuple[np.ndarray, np.ndarray]:
-    """Constrained pairs (k, 2) and their lengths (nm) from an OpenMM System."""
+    """Constrained pairs (k, 2) and their lengths (nm) from an OpenMM System.
+
+    Parameters
+    ----------
+    system : openmm.System
+        The System.
+
+    Returns
+    -------
+    pairs : numpy.ndarray
+        (k, 2) atom indices.
+    lengths : numpy.ndarray
+        (k,) lengths in nm.
+
+    Examples
+    --------
+    >>> from openmm_alphaprk.analysis import system_constraints
+    >>> from openmm_alphaprk.systems import prepare_system
+    >>> pairs, lengths = system_constraints(prepare_system("water-cluster").system)
+    >>> pairs.shape, pairs[:2].tolist()  # three per rigid water, the first its two O-H
+    ((222, 2), [[0, 1], [0, 2]])
+    >>> sorted(set(lengths.round(5).tolist()))  # TIP3P's O-H and H-H distances
+    [0.09572, 0.15139]
+    """
     n = system.getNumConstraints()
     pairs = np.empty((n, 2), dtype=np.intp)
     lengths = np.empty(n)

@@ -18,41 +18,64 @@ class Diffusion(EinsteinMSD):
 
     Parameters
     ----------
-    universe
+    universe : MDAnalysis.Universe
         The Universe.
-    select
+    select : str, default "all"
         Atoms to follow (e.g. water oxygens, ``"resname HOH and name O"``).
-    msd_type
+    msd_type : str, default "xyz"
         Dimensions (``"xyz"``: d = 3).
-    fit_start, fit_stop
+    fit_start, fit_stop : float
         Fit window as fractions of the longest lag time (defaults 0.1, 0.6: past the
         ballistic start, before the noisy long lags).
-    error_groups
+    error_groups : int, default 4
         The standard error of D is the spread of D over this many disjoint groups of
         the selected atoms (every ``error_groups``-th atom), divided by √groups
-        (default 4; at most the number of atoms).
-    kwargs
-        Passed on to ``EinsteinMSD`` (``fft=False`` is the default here, which needs no
-        extra package).
+        (at most the number of atoms).
+    fft : bool, default False
+        Passed on to ``EinsteinMSD``; ``True`` needs the ``tidynamics`` package.
+    **kwargs
+        Passed on to ``EinsteinMSD``.
 
     Attributes
     ----------
-    results.timeseries, results.delta_t_values
+    results.timeseries, results.delta_t_values : numpy.ndarray
         MSD (Å²) against lag time (ps), from ``EinsteinMSD``.
-    results.slope
+    results.slope : float
         Fitted slope (Å²/ps).
-    results.diffusion_coefficient
+    results.diffusion_coefficient : float
         D in 1e-5 cm²/s.
-    results.diffusion_coefficient_standard_error
+    results.diffusion_coefficient_standard_error : float
         Standard error of D (1e-5 cm²/s) from the groups; NaN with fewer than two
         groups. It measures the spread between molecules, not the error of a short run's
         unconverged MSD.
-    results.error_groups
+    results.error_groups : int
         The number of groups it was taken over.
-    results.frames
+    results.frames : int
         Frames analysed.
-    results.fit_window
+    results.fit_window : tuple of (float, float)
         Lag times (ps) of the first and last fitted point.
+
+    Examples
+    --------
+    The water oxygens of the 2 nm box over a short RATTLE run (40 fs: far too short
+    for a diffusion coefficient, long enough to show the call):
+
+    >>> import os, tempfile
+    >>> from openmm_alphaprk.runs import run_nve
+    >>> from openmm_alphaprk.runs.rundir import open_universe
+    >>> folder = tempfile.TemporaryDirectory()
+    >>> run = os.path.join(folder.name, "run")
+    >>> _ = run_nve("tip3p-2nm", "rattle", run, steps=20, trajectory_interval=2, progress=False)
+    >>> universe = open_universe(run)  # topology.pdb and trajectory.dcd: 10 frames
+    >>> from openmm_alphaprk.analysis import WATER_OXYGENS, Diffusion
+    >>> msd = Diffusion(universe, select=WATER_OXYGENS).run()
+    >>> msd.results.frames, msd.results.error_groups, len(msd.results.timeseries)
+    (10, 4, 10)
+    >>> [round(lag, 3) for lag in msd.results.fit_window]  # ps: 0.1 and 0.6 of the longest lag
+    [0.004, 0.02]
+    >>> bool(msd.results.diffusion_coefficient > 0)  # 1e-5 cm²/s
+    True
+    >>> folder.cleanup()
     """
 
     def __init__(

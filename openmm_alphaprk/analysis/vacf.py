@@ -91,49 +91,70 @@ class VelocityAutocorrelation(AnalysisBase):
 
     Parameters
     ----------
-    universe
+    universe : MDAnalysis.Universe or MDAnalysis.AtomGroup
         Universe or AtomGroup; ``select`` is applied to it.
-    select
+    select : str, default "all"
         Atoms to follow, e.g. ``"name H*"`` for water hydrogens (libration band).
-    source
+    source : {"positions", "velocities"}, default "positions"
         ``"positions"``: the frame's positions are velocities in Å/ps (the velocity DCD
         files of the run driver); ``"velocities"``: the trajectory's own velocities (Å/ps).
-    dt
+    dt : float, optional
         Time between consecutive trajectory frames in ps; default the trajectory's
         ``dt``. With ``run(step=k)`` the analysed frames are ``k * dt`` apart.
-    max_lag
+    max_lag : float, optional
         Longest lag (ps) of the VACF kept and transformed; default the shorter of 1 ps
         and half the analysed time span. Must not exceed the analysed time span.
-    mass_weighted
+    mass_weighted : bool, default False
         Average the atoms' autocorrelations with their masses as weights
         (Σ m_i C_i / Σ m_i, still in Å²/ps²) instead of uniformly.
-    zero_pad
+    zero_pad : int, default 4
         Zero padding factor of the cosine transform (finer frequency grid, same
         resolution).
-    kwargs
+    **kwargs
         Passed on to ``AnalysisBase`` (e.g. ``verbose``).
 
     Attributes
     ----------
-    results.lags
+    results.lags : numpy.ndarray
         Lag times (ps), 0 to ``max_lag``.
-    results.vacf
+    results.vacf : numpy.ndarray
         C(t) in Å²/ps²; C(0) = ⟨|v|²⟩.
-    results.normalized_vacf
+    results.normalized_vacf : numpy.ndarray
         C(t) / C(0).
-    results.n_origins
+    results.n_origins : numpy.ndarray
         Time origins averaged at each lag (n_frames − lag index).
-    results.frequencies
+    results.frequencies : numpy.ndarray
         Wavenumbers (cm⁻¹) of the spectrum, 0 to the Nyquist frequency.
-    results.spectrum
+    results.spectrum : numpy.ndarray
         Vibrational spectrum in 1/cm⁻¹, unit area over ``results.frequencies``. Window
         side lobes can make it slightly negative far from the bands.
-    results.frequency_resolution
+    results.frequency_resolution : float
         1 / (2 max_lag) in cm⁻¹.
-    results.dt
+    results.dt : float
         Time between analysed frames (ps).
-    results.max_lag
+    results.max_lag : float
         The longest lag used (ps).
+
+    Examples
+    --------
+    The water hydrogens of the 2 nm box, velocities written every step of a short
+    RATTLE run (40 fs: a spectrum needs picoseconds; this shows the call):
+
+    >>> import os, tempfile
+    >>> from openmm_alphaprk.analysis import VelocityAutocorrelation
+    >>> from openmm_alphaprk.runs import run_nve
+    >>> from openmm_alphaprk.runs.rundir import open_universe
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     run = os.path.join(folder, "run")
+    ...     _ = run_nve("tip3p-2nm", "rattle", run, steps=20, velocity_interval=1, progress=False)
+    ...     velocities = open_universe(run, "velocities.dcd")  # Å/ps stored as positions
+    ...     vacf = VelocityAutocorrelation(velocities, select="name H*").run()
+    >>> round(vacf.results.dt, 6), round(vacf.results.max_lag, 6)  # ps: half the 20 frames' span
+    (0.002, 0.018)
+    >>> float(vacf.results.normalized_vacf[0]), vacf.results.n_origins[:3].tolist()
+    (1.0, [20, 19, 18])
+    >>> round(vacf.results.frequency_resolution)  # cm⁻¹: 1/(2 max_lag), coarse for so short a lag
+    927
     """
 
     def __init__(
@@ -270,11 +291,11 @@ def band_summary(
 
     Parameters
     ----------
-    frequencies
+    frequencies : array_like of float
         Wavenumbers (cm⁻¹), increasing.
-    spectrum
+    spectrum : array_like of float
         Spectrum on ``frequencies`` (any normalization).
-    low, high
+    low, high : float, optional
         Band limits in cm⁻¹ (inclusive); ``None`` for no limit.
 
     Returns
@@ -288,6 +309,20 @@ def band_summary(
     ------
     ValueError
         If the arrays differ in shape, ``low >= high``, or no grid point falls in the band.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from openmm_alphaprk.analysis import band_summary
+    >>> wavenumbers = np.linspace(0, 4000, 801)  # cm⁻¹
+    >>> def band(centre, width):
+    ...     return np.exp(-(((wavenumbers - centre) / width) ** 2))
+    >>> spectrum = band(1650, 50) + 2 * band(3400, 100)  # a bend and a stretch band
+    >>> bend = band_summary(wavenumbers, spectrum, low=1000, high=2500)
+    >>> bend["peak"], round(bend["centroid"], 6), round(bend["weight"], 6)
+    (1650.0, 1650.0, 0.2)
+    >>> round(band_summary(wavenumbers, spectrum, low=2500)["weight"], 6)  # the two tile the axis
+    0.8
     """
     frequencies = np.asarray(frequencies, dtype=float)
     spectrum = np.asarray(spectrum, dtype=float)
@@ -327,11 +362,11 @@ def spectrum_difference(
 
     Parameters
     ----------
-    freq, spec
+    freq, spec : array_like of float
         Wavenumbers (cm⁻¹, increasing) and spectrum of the run.
-    freq_ref, spec_ref
+    freq_ref, spec_ref : array_like of float
         The same for the reference.
-    low, high
+    low, high : float, optional
         Band limits in cm⁻¹; ``None``: where both grids overlap.
 
     Returns
@@ -343,6 +378,22 @@ def spectrum_difference(
     ------
     ValueError
         If the band holds no grid point or either spectrum has no positive area in it.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from openmm_alphaprk.analysis import spectrum_difference
+    >>> wavenumbers = np.linspace(0, 4000, 801)  # cm⁻¹
+    >>> def band(centre, width):
+    ...     return np.exp(-(((wavenumbers - centre) / width) ** 2))
+    >>> spectrum = band(1650, 50) + 2 * band(3400, 100)  # a bend and a stretch band
+    >>> shifted = band(1650, 50) + 2 * band(3450, 100)  # the stretch 50 cm⁻¹ higher
+    >>> spectrum_difference(wavenumbers, spectrum, wavenumbers, spectrum)
+    0.0
+    >>> round(spectrum_difference(wavenumbers, spectrum, wavenumbers, shifted), 3)
+    0.221
+    >>> round(spectrum_difference(wavenumbers, spectrum, wavenumbers, shifted, low=1000, high=2500), 6)
+    0.0
     """
     freq, spec = np.asarray(freq, dtype=float), np.asarray(spec, dtype=float)
     freq_ref, spec_ref = np.asarray(freq_ref, dtype=float), np.asarray(spec_ref, dtype=float)
