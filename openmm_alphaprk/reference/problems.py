@@ -24,6 +24,24 @@ def planar_pendulum(kappa: float = 0.0) -> ConstrainedProblem:
 
     ``kappa`` adds a horizontal spring, a position-dependent force through which α
     acts (with κ = 0 the force is constant and α changes nothing).
+
+    Parameters
+    ----------
+    kappa : float, default 0.0
+        Stiffness of the horizontal spring.
+
+    Returns
+    -------
+    ConstrainedProblem
+
+    Examples
+    --------
+    >>> from openmm_alphaprk.reference import planar_pendulum, planar_pendulum_start
+    >>> pendulum = planar_pendulum(kappa=1.0)
+    >>> pendulum.name, pendulum.n_dof
+    ('planar pendulum (kappa=1.0)', 2)
+    >>> round(pendulum.energy(*planar_pendulum_start(0.5)), 6)  # at rest: −cos θ₀ + ½κ sin²θ₀
+    -0.762658
     """
     return ConstrainedProblem(
         masses=np.ones(2),
@@ -37,12 +55,49 @@ def planar_pendulum(kappa: float = 0.0) -> ConstrainedProblem:
 
 
 def planar_pendulum_start(theta0: float) -> tuple[Array, Array]:
-    """Start at rest at angle θ₀ from the downward vertical."""
+    """Start at rest at angle θ₀ from the downward vertical.
+
+    Parameters
+    ----------
+    theta0 : float
+        The angle (rad).
+
+    Returns
+    -------
+    x, v : numpy.ndarray
+        Positions (sin θ₀, −cos θ₀) and zero velocities.
+
+    Examples
+    --------
+    >>> from openmm_alphaprk.reference import planar_pendulum_start
+    >>> x, v = planar_pendulum_start(0.5)
+    >>> x.round(6).tolist(), v.tolist()
+    ([0.479426, -0.877583], [0.0, 0.0])
+    """
     return np.array([np.sin(theta0), -np.cos(theta0)]), np.zeros(2)
 
 
 def planar_pendulum_period(theta0: float) -> float:
-    """Exact period T = 4 K(sin²(θ₀/2)) of the unit pendulum (g = l = 1)."""
+    """Exact period T = 4 K(sin²(θ₀/2)) of the unit pendulum (g = l = 1).
+
+    Parameters
+    ----------
+    theta0 : float
+        The amplitude (rad).
+
+    Returns
+    -------
+    float
+
+    Examples
+    --------
+    >>> import math
+    >>> from openmm_alphaprk.reference import planar_pendulum_period
+    >>> round(planar_pendulum_period(0.5), 6)
+    6.38279
+    >>> math.isclose(planar_pendulum_period(1e-8), 2 * math.pi)  # small swings: 2π
+    True
+    """
     return 4.0 * float(ellipk(np.sin(theta0 / 2.0) ** 2))
 
 
@@ -50,6 +105,26 @@ def spherical_pendulum(kappa: float = 0.0) -> ConstrainedProblem:
     """Spherical pendulum: H = ½|p|² + q₃ + ½κ q₃², g = |q|² − 1 (Hairer–Lubich–Wanner §VII.1).
 
     L₃ = q₁p₂ − q₂p₁ is a quadratic invariant for every κ.
+
+    Parameters
+    ----------
+    kappa : float, default 0.0
+        Stiffness of a vertical spring.
+
+    Returns
+    -------
+    ConstrainedProblem
+
+    Examples
+    --------
+    α-RATTLE keeps the quadratic invariant L₃ to round-off:
+
+    >>> from openmm_alphaprk.reference import integrate, spherical_pendulum, spherical_pendulum_start
+    >>> pendulum = spherical_pendulum()
+    >>> x0, v0 = spherical_pendulum_start()
+    >>> x, v = integrate(pendulum, x0, v0, 0.01, 100, alpha=0.3)
+    >>> bool(abs((x[0] * v[1] - x[1] * v[0]) - (x0[0] * v0[1] - x0[1] * v0[0])) < 1e-12)
+    True
     """
     return ConstrainedProblem(
         masses=np.ones(3),
@@ -66,6 +141,17 @@ def spherical_pendulum_start() -> tuple[Array, Array]:
     """Return the standard start: H₀ = 25.8924988…, L₃ = 6.2631282….
 
     q₀ = (sin 1.3, 0, cos 1.3), p₀ = (3 cos 1.3, 6.5, −3 sin 1.3).
+
+    Returns
+    -------
+    x, v : numpy.ndarray
+
+    Examples
+    --------
+    >>> from openmm_alphaprk.reference import spherical_pendulum, spherical_pendulum_start
+    >>> x, v = spherical_pendulum_start()
+    >>> round(spherical_pendulum().energy(x, v), 7), round(float(x[0] * v[1] - x[1] * v[0]), 7)
+    (25.8924988, 6.2631282)
     """
     return (
         np.array([np.sin(1.3), 0.0, np.cos(1.3)]),
@@ -74,7 +160,26 @@ def spherical_pendulum_start() -> tuple[Array, Array]:
 
 
 def harmonic_oscillator(omega: float = 1.0) -> ConstrainedProblem:
-    """One unconstrained harmonic degree of freedom, U = ½ω²q² (linear stability tests)."""
+    """One unconstrained harmonic degree of freedom, U = ½ω²q² (linear stability tests).
+
+    Parameters
+    ----------
+    omega : float, default 1.0
+        Angular frequency.
+
+    Returns
+    -------
+    ConstrainedProblem
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from openmm_alphaprk.reference import harmonic_oscillator, integrate
+    >>> oscillator = harmonic_oscillator(omega=2.0)
+    >>> x, v = integrate(oscillator, np.array([1.0]), np.array([0.0]), 0.1, 10)
+    >>> round(oscillator.energy(x, v), 2)  # ½ω² = 2 at the start, kept near it (hω = 0.2)
+    1.98
+    """
     return ConstrainedProblem(
         masses=np.ones(1),
         potential=lambda q: 0.5 * omega**2 * float(q[0] ** 2),
@@ -200,6 +305,34 @@ def water_cluster(
     """Rigid TIP3P waters on a small cubic lattice in vacuum, with thermal velocities.
 
     Returns the problem and a consistent starting state (zero total momentum).
+
+    Parameters
+    ----------
+    n_waters : int, default 3
+        Number of waters.
+    spacing : float, default 0.31
+        Lattice spacing (nm).
+    temperature : float, default 300.0
+        Temperature of the velocities (K).
+    seed : int, default 0
+        Seed of the orientations and velocities.
+
+    Returns
+    -------
+    problem : ConstrainedProblem
+        In OpenMM's units; its metadata hold the model for :func:`to_openmm_system`.
+    x, v : numpy.ndarray
+        The start (nm, nm/ps).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from openmm_alphaprk.reference import linear_momentum, water_cluster
+    >>> problem, x, v = water_cluster(n_waters=3)
+    >>> problem.name, problem.n_dof
+    ('3 rigid TIP3P waters in vacuum', 27)
+    >>> bool(np.abs(problem.g(x)).max() < 1e-12), bool(np.abs(linear_momentum(problem, v)).max() < 1e-12)
+    (True, True)
     """
     rng = np.random.default_rng(seed)
     side = int(np.ceil(n_waters ** (1 / 3)))
@@ -229,7 +362,34 @@ def water_cluster(
 def rigid_diatomics(
     n_molecules: int = 4, bond: float = 0.11, spacing: float = 0.4, temperature: float = 300.0, seed: int = 0
 ) -> tuple[ConstrainedProblem, Array, Array]:
-    """Rigid polar diatomics (charges ±0.3 e, LJ) in vacuum, with thermal velocities."""
+    """Rigid polar diatomics (charges ±0.3 e, LJ) in vacuum, with thermal velocities.
+
+    Parameters
+    ----------
+    n_molecules : int, default 4
+        Number of molecules.
+    bond : float, default 0.11
+        Bond length (nm).
+    spacing : float, default 0.4
+        Lattice spacing (nm).
+    temperature : float, default 300.0
+        Temperature of the velocities (K).
+    seed : int, default 0
+        Seed of the orientations and velocities.
+
+    Returns
+    -------
+    problem : ConstrainedProblem
+    x, v : numpy.ndarray
+        A consistent start with zero total momentum (nm, nm/ps).
+
+    Examples
+    --------
+    >>> from openmm_alphaprk.reference import rigid_diatomics
+    >>> problem, x, v = rigid_diatomics(n_molecules=4)
+    >>> problem.name, problem.n_dof, problem.g(x).shape  # one constraint per molecule
+    ('4 rigid diatomics in vacuum', 24, (4,))
+    """
     rng = np.random.default_rng(seed)
     side = int(np.ceil(n_molecules ** (1 / 3)))
     sites = np.array([(i, j, k) for i in range(side) for j in range(side) for k in range(side)])[:n_molecules]
@@ -254,18 +414,91 @@ def rigid_diatomics(
 
 
 def angular_momentum(problem: ConstrainedProblem, x: Array, v: Array) -> Array:
-    """Total angular momentum Σ mᵢ rᵢ × vᵢ of a molecular problem."""
+    """Total angular momentum Σ mᵢ rᵢ × vᵢ of a molecular problem.
+
+    Parameters
+    ----------
+    problem : ConstrainedProblem
+        A molecular problem (three degrees of freedom per atom).
+    x, v : numpy.ndarray
+        Positions and velocities.
+
+    Returns
+    -------
+    numpy.ndarray
+        The three components.
+
+    Examples
+    --------
+    Kept by α-RATTLE (in vacuum):
+
+    >>> import numpy as np
+    >>> from openmm_alphaprk.reference import angular_momentum, integrate, water_cluster
+    >>> problem, x0, v0 = water_cluster(n_waters=3)
+    >>> x, v = integrate(problem, x0, v0, 0.002, 10, alpha=0.2)
+    >>> change = angular_momentum(problem, x, v) - angular_momentum(problem, x0, v0)
+    >>> bool(np.abs(change).max() < 1e-10)
+    True
+    """
     m = problem.masses.reshape(-1, 3)[:, 0]
     return np.sum(m[:, None] * np.cross(x.reshape(-1, 3), v.reshape(-1, 3)), axis=0)
 
 
 def linear_momentum(problem: ConstrainedProblem, v: Array) -> Array:
-    """Total linear momentum Σ mᵢ vᵢ of a molecular problem."""
+    """Total linear momentum Σ mᵢ vᵢ of a molecular problem.
+
+    Parameters
+    ----------
+    problem : ConstrainedProblem
+        A molecular problem (three degrees of freedom per atom).
+    v : numpy.ndarray
+        Velocities.
+
+    Returns
+    -------
+    numpy.ndarray
+        The three components.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from openmm_alphaprk.reference import linear_momentum, rigid_diatomics
+    >>> problem, x, v = rigid_diatomics()
+    >>> bool(np.abs(linear_momentum(problem, v)).max() < 1e-12)  # the start has none
+    True
+    """
     return np.sum((problem.masses * v).reshape(-1, 3), axis=0)
 
 
 def to_openmm_system(problem: ConstrainedProblem):
-    """Build the ``openmm.System`` of a molecular problem: NoCutoff nonbonded force, constraints."""
+    """Build the ``openmm.System`` of a molecular problem: NoCutoff nonbonded force, constraints.
+
+    Parameters
+    ----------
+    problem : ConstrainedProblem
+        A problem of :func:`water_cluster` or :func:`rigid_diatomics`.
+
+    Returns
+    -------
+    openmm.System
+
+    Examples
+    --------
+    The same potential energy in OpenMM:
+
+    >>> import openmm
+    >>> from openmm_alphaprk.reference import to_openmm_system, water_cluster
+    >>> problem, x, v = water_cluster(n_waters=3)
+    >>> system = to_openmm_system(problem)
+    >>> system.getNumParticles(), system.getNumConstraints()
+    (9, 9)
+    >>> context = openmm.Context(system, openmm.VerletIntegrator(0.001),
+    ...                          openmm.Platform.getPlatformByName("Reference"))
+    >>> context.setPositions(x.reshape(-1, 3))
+    >>> energy = context.getState(getEnergy=True).getPotentialEnergy()._value  # kJ/mol
+    >>> abs(energy - problem.potential(x)) < 1e-8
+    True
+    """
     import openmm as mm
 
     model: MolecularModel = problem.metadata["model"]

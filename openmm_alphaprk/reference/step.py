@@ -25,19 +25,42 @@ class ConstrainedProblem:
 
     Parameters
     ----------
-    masses
+    masses : numpy.ndarray
         Mass of each degree of freedom, shape (n,).
-    potential
+    potential : callable
         U(q) → float.
-    force
+    force : callable
         F(q) = −∇U(q) → shape (n,).
-    constraints
+    constraints : callable, optional
         g(q) → shape (k,); ``None`` for an unconstrained system.
-    constraint_jacobian
+    constraint_jacobian : callable, optional
         G(q) → shape (k, n).
-    name
+    name : str, default "problem"
         A label.
+    metadata : dict, optional
+        Anything the problem's maker keeps with it (the molecular problems keep their
+        model here, for :func:`~.problems.to_openmm_system`).
 
+    Examples
+    --------
+    A particle on the unit circle under gravity (:func:`~.problems.planar_pendulum`
+    with κ = 0), written out:
+
+    >>> import numpy as np
+    >>> from openmm_alphaprk.reference import ConstrainedProblem
+    >>> pendulum = ConstrainedProblem(
+    ...     masses=np.ones(2),
+    ...     potential=lambda q: q[1],
+    ...     force=lambda q: np.array([0.0, -1.0]),
+    ...     constraints=lambda q: np.array([q @ q - 1.0]),
+    ...     constraint_jacobian=lambda q: 2.0 * q[None, :],
+    ...     name="pendulum",
+    ... )
+    >>> x, v = np.array([1.0, 0.0]), np.array([0.0, 0.5])
+    >>> pendulum.n_dof, pendulum.g(x), pendulum.G(x) @ v  # a consistent state
+    (2, array([0.]), array([0.]))
+    >>> pendulum.energy(x, v)  # ½ vᵀMv + U
+    0.125
     """
 
     masses: Array
@@ -72,7 +95,41 @@ class ConstrainedProblem:
 def solve_positions(
     problem: ConstrainedProblem, x_ref: Array, x_free: Array, tol: float = 1e-14, max_iter: int = 100
 ) -> Array:
-    """SHAKE: x = x_free − M⁻¹ G(x_ref)ᵀ λ with g(x) = 0, by Newton's method on λ."""
+    """SHAKE: x = x_free − M⁻¹ G(x_ref)ᵀ λ with g(x) = 0, by Newton's method on λ.
+
+    Parameters
+    ----------
+    problem : ConstrainedProblem
+        The constrained system.
+    x_ref : numpy.ndarray
+        Positions whose constraint gradients G(x_ref) give the directions of the correction.
+    x_free : numpy.ndarray
+        The unconstrained positions.
+    tol : float, default 1e-14
+        Stop when max |g(x)| is below this.
+    max_iter : int, default 100
+        Cap on Newton iterations.
+
+    Returns
+    -------
+    numpy.ndarray
+        The constrained positions.
+
+    Raises
+    ------
+    RuntimeError
+        If Newton's method does not converge in ``max_iter`` iterations.
+
+    Examples
+    --------
+    >>> from openmm_alphaprk.reference import planar_pendulum, planar_pendulum_start
+    >>> pendulum = planar_pendulum(kappa=1.0)
+    >>> x0, v0 = planar_pendulum_start(0.5)
+    >>> from openmm_alphaprk.reference import solve_positions
+    >>> x = solve_positions(pendulum, x0, x0 + [0.01, 0.02])  # a free move, back onto |q| = 1
+    >>> round(float(x @ x), 12)
+    1.0
+    """
     G_ref = problem.G(x_ref)
     if G_ref.shape[0] == 0:
         return x_free.copy()
@@ -92,7 +149,32 @@ def solve_positions(
 
 
 def project_velocities(problem: ConstrainedProblem, x: Array, v_free: Array) -> Array:
-    """RATTLE: v = v_free − M⁻¹ G(x)ᵀ μ with G(x) v = 0."""
+    """RATTLE: v = v_free − M⁻¹ G(x)ᵀ μ with G(x) v = 0.
+
+    Parameters
+    ----------
+    problem : ConstrainedProblem
+        The constrained system.
+    x : numpy.ndarray
+        Positions (on the constraint manifold).
+    v_free : numpy.ndarray
+        The unconstrained velocities.
+
+    Returns
+    -------
+    numpy.ndarray
+        The velocities tangent to the constraints.
+
+    Examples
+    --------
+    >>> from openmm_alphaprk.reference import planar_pendulum, planar_pendulum_start
+    >>> pendulum = planar_pendulum(kappa=1.0)
+    >>> x0, v0 = planar_pendulum_start(0.5)
+    >>> from openmm_alphaprk.reference import project_velocities
+    >>> v = project_velocities(pendulum, x0, [1.0, 0.0])
+    >>> bool(abs(v @ x0) < 1e-12)  # no component along the rod
+    True
+    """
     G = problem.G(x)
     if G.shape[0] == 0:
         return v_free.copy()
@@ -103,7 +185,32 @@ def project_velocities(problem: ConstrainedProblem, x: Array, v_free: Array) -> 
 
 @dataclass
 class StepInfo:
-    """Diagnostics of one reference step."""
+    """Diagnostics of one reference step.
+
+    Parameters
+    ----------
+    midpoint_iterations : int, default 0
+        Iterations of the midpoint solve.
+    force_evaluations : int, default 0
+        Force evaluations of the step (F(x0) not counted when it was passed in).
+    midpoint_change : float, default 0.0
+        The last iteration's max-norm change of x1.
+
+    Examples
+    --------
+    Filled by :func:`alpha_rattle_step`:
+
+    >>> from openmm_alphaprk.reference import planar_pendulum, planar_pendulum_start
+    >>> pendulum = planar_pendulum(kappa=1.0)
+    >>> x0, v0 = planar_pendulum_start(0.5)
+    >>> from openmm_alphaprk.reference import StepInfo, alpha_rattle_step
+    >>> info = StepInfo()
+    >>> _ = alpha_rattle_step(pendulum, x0, v0, 0.1, 0.2, info=info)
+    >>> info.midpoint_iterations > 1, info.force_evaluations == info.midpoint_iterations + 1  # + F(x1)
+    (True, True)
+    >>> info.midpoint_change <= 1e-15  # the default midpoint_tolerance
+    True
+    """
 
     midpoint_iterations: int = 0
     force_evaluations: int = 0
@@ -128,36 +235,47 @@ def alpha_rattle_step(
 
     Parameters
     ----------
-    problem
+    problem : ConstrainedProblem
         The constrained system.
-    x0, v0
+    x0, v0 : numpy.ndarray
         A consistent state (g(x0) = 0, G(x0) v0 = 0).
-    h
+    h : float
         Step size (may be negative, as in composition methods).
-    alpha
+    alpha : float
         The method parameter.
-    f0
+    f0 : numpy.ndarray, optional
         F(x0) if already known.
-    midpoint_tolerance
+    midpoint_tolerance : float, default 1e-15
         Stop the midpoint iteration when the max-norm change of x1 is below this.
-    max_midpoint_iterations
+    max_midpoint_iterations : int, default 100
         Cap on midpoint iterations (an error is raised if it is reached).
-    one_pass
+    one_pass : bool, default False
         Take the midpoint force at the RATTLE-predicted midpoint only (the
         deliberately non-symplectic variant the tests must catch).
-    midpoint_solver
+    midpoint_solver : {"fixed-point", "newton"}, default "fixed-point"
         ``"fixed-point"`` (what the OpenMM integrator does; converges while
         |α| h²ω²/4 < 1) or ``"newton"`` (finite-difference Jacobian; for small
         systems, e.g. to study the exact map's stability where fixed-point
         iteration diverges).
-    info
+    info : StepInfo, optional
         Filled with diagnostics if given.
 
     Returns
     -------
-    x1, v1, f1
+    x1, v1, f1 : numpy.ndarray
         The new state and the force at x1.
 
+    Examples
+    --------
+    >>> from openmm_alphaprk.reference import planar_pendulum, planar_pendulum_start
+    >>> pendulum = planar_pendulum(kappa=1.0)
+    >>> x0, v0 = planar_pendulum_start(0.5)
+    >>> from openmm_alphaprk.reference import alpha_rattle_step
+    >>> x1, v1, f1 = alpha_rattle_step(pendulum, x0, v0, 0.1, 0.2)
+    >>> round(float(x1 @ x1), 12), bool(abs(x1 @ v1) < 1e-12)  # on the manifold: |q| = 1, q·v = 0
+    (1.0, True)
+    >>> bool((f1 == pendulum.force(x1)).all())
+    True
     """
     info = info if info is not None else StepInfo()
     minv = problem.inverse_masses
@@ -246,6 +364,48 @@ def integrate(
     ``step`` replaces :func:`alpha_rattle_step` (e.g. by the fourth-order
     ``alpha_rattle4_step``). Returns (x, v) at the end, or (x, v, xs, vs) with xs,
     vs of shape (n_steps+1, n).
+
+    Parameters
+    ----------
+    problem : ConstrainedProblem
+        The constrained system.
+    x0, v0 : array_like
+        A consistent start.
+    h : float
+        Step size.
+    n_steps : int
+        Number of steps.
+    alpha : float, default 0.0
+        The method parameter (0: RATTLE).
+    record : bool, default False
+        Also return every state.
+    step : callable, optional
+        The one-step map, called as ``step(problem, x, v, h, alpha, f0=f, **step_options)``;
+        default :func:`alpha_rattle_step`.
+    **step_options
+        Passed on to ``step`` (``midpoint_tolerance``, ``composition``, …).
+
+    Returns
+    -------
+    x, v : numpy.ndarray
+        The final state.
+    xs, vs : numpy.ndarray
+        With ``record``: every state, shape (n_steps + 1, n).
+
+    Examples
+    --------
+    >>> from openmm_alphaprk.reference import planar_pendulum, planar_pendulum_start
+    >>> pendulum = planar_pendulum(kappa=1.0)
+    >>> x0, v0 = planar_pendulum_start(0.5)
+    >>> from openmm_alphaprk.reference import integrate
+    >>> x, v = integrate(pendulum, x0, v0, 0.05, 100, alpha=0.1)
+    >>> round(float(x @ x), 12)
+    1.0
+    >>> bool(abs(pendulum.energy(x, v) - pendulum.energy(x0, v0)) < 1e-4)  # symplectic: bounded error
+    True
+    >>> x, v, xs, vs = integrate(pendulum, x0, v0, 0.05, 10, record=True)
+    >>> xs.shape, vs.shape
+    ((11, 2), (11, 2))
     """
     step = alpha_rattle_step if step is None else step
     x, v = np.array(x0, dtype=float), np.array(v0, dtype=float)
@@ -262,6 +422,29 @@ def integrate(
 
 
 def project_to_manifold(problem: ConstrainedProblem, x: Array, v: Array) -> tuple[Array, Array]:
-    """Nearest consistent state: positions onto g = 0 (along G(x)ᵀ), then velocities."""
+    """Nearest consistent state: positions onto g = 0 (along G(x)ᵀ), then velocities.
+
+    Parameters
+    ----------
+    problem : ConstrainedProblem
+        The constrained system.
+    x, v : numpy.ndarray
+        A state near the constraint manifold.
+
+    Returns
+    -------
+    x, v : numpy.ndarray
+        The consistent state: g(x) = 0, G(x) v = 0.
+
+    Examples
+    --------
+    >>> from openmm_alphaprk.reference import planar_pendulum, planar_pendulum_start
+    >>> pendulum = planar_pendulum(kappa=1.0)
+    >>> x0, v0 = planar_pendulum_start(0.5)
+    >>> from openmm_alphaprk.reference import project_to_manifold
+    >>> x, v = project_to_manifold(pendulum, 1.1 * x0, [1.0, 0.0])
+    >>> round(float(x @ x), 12), bool(abs(x @ v) < 1e-12)
+    (1.0, True)
+    """
     x = solve_positions(problem, x, x)
     return x, project_velocities(problem, x, v)
