@@ -48,15 +48,17 @@ def analyze_run(
 
     Parameters
     ----------
-    run
+    run : str or os.PathLike
         The run directory.
-    select
+    select : str, default WATER_OXYGENS
         MDAnalysis selection of the atoms for RDF and MSD (default: water oxygens).
-    rdf_bins, rdf_max
-        RDF histogram bins and largest distance (Å; capped at half the box).
-    plot
+    rdf_bins : int, default 100
+        RDF histogram bins.
+    rdf_max : float, default 8.0
+        RDF's largest distance (Å; capped at half the box).
+    plot : bool, default True
         Write the figures (needs matplotlib).
-    progress
+    progress : bool, default False
         Show MDAnalysis progress bars.
 
     Returns
@@ -68,6 +70,25 @@ def analyze_run(
     ------
     FileNotFoundError
         If ``run`` is not a run directory (no ``run.json``) or lacks its files.
+
+    Examples
+    --------
+    A short RATTLE run of the 2 nm water box, then its analyses (``alphaprk analyze``):
+
+    >>> import os, tempfile
+    >>> from openmm_alphaprk.runs import run_nve
+    >>> from openmm_alphaprk.workflows import analyze_run
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     run = os.path.join(folder, "run")
+    ...     _ = run_nve("tip3p-2nm", "rattle", run, steps=20, trajectory_interval=2, progress=False)
+    ...     analysis = analyze_run(run, plot=False)
+    ...     written = os.path.isfile(os.path.join(run, "analysis.json"))
+    >>> written, sorted(analysis)
+    (True, ['constraints', 'energy', 'figures', 'msd', 'notes', 'parameters', 'rdf', 'run'])
+    >>> analysis["energy"]["samples"], analysis["constraints"]["frames"]
+    (3, 10)
+    >>> bool(analysis["constraints"]["overall_max_relative_deviation"] < 1e-5)
+    True
     """
     run = Path(run)
     _check_run_directory(run)

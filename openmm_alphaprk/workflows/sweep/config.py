@@ -85,7 +85,53 @@ class Cell:
 
 @dataclass(frozen=True)
 class SweepConfig:
-    """A parsed sweep configuration: the cells, where they go and how they run."""
+    """A parsed sweep configuration: the cells, where they go and how they run.
+
+    Attributes
+    ----------
+    cells : tuple of Cell
+        Every run of the sweep, in the configuration's order, each once.
+    output : pathlib.Path
+        Folder of the run directories and the table (relative paths: from the
+        configuration file's folder).
+    n_workers : int, default 1
+        Size of the ``LocalCluster`` (``[cluster] n_workers``).
+    scheduler : str, optional
+        Address of a running dask scheduler (``[cluster] scheduler``) instead.
+
+    Examples
+    --------
+    Made by :func:`load_config` (or :func:`parse_config` from a dict): one grid of
+    1 system × 2 integrators × 2 step sizes:
+
+    >>> import os, tempfile
+    >>> from openmm_alphaprk.workflows import load_config
+    >>> CONFIG = '''
+    ... output = "sweep-out"
+    ... [run]
+    ... duration_ps = 0.02
+    ... platform = "Reference"
+    ... energy_interval_fs = 4
+    ... [[grid]]
+    ... systems = ["water-cluster"]
+    ... integrators = ["rattle", "alpha={alpha}"]
+    ... timesteps_fs = [2, 1]
+    ... alphas = ["1/6"]
+    ... '''
+    >>> folder = tempfile.TemporaryDirectory()
+    >>> path = os.path.join(folder.name, "sweep.toml")
+    >>> with open(path, "w") as file:
+    ...     _ = file.write(CONFIG)
+    >>> config = load_config(path)
+    >>> len(config.cells), config.output.name, config.n_workers, config.scheduler
+    (4, 'sweep-out', 1, None)
+    >>> cell = config.cells[-1]
+    >>> cell.name, cell.integrator, cell.timestep_fs, cell.steps
+    ('water-cluster__alpha=1_6__1fs__start', 'alpha=1/6', Fraction(1, 1), 20)
+    >>> cell.options().energy_interval  # 4 fs at 1 fs
+    4
+    >>> folder.cleanup()
+    """
 
     cells: tuple[Cell, ...]
     output: Path
@@ -96,11 +142,52 @@ class SweepConfig:
 def load_config(path: str | os.PathLike) -> SweepConfig:
     """Read and check a sweep configuration file (TOML); see :mod:`openmm_alphaprk.workflows.sweep`.
 
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The configuration file.
+
+    Returns
+    -------
+    SweepConfig
+
     Raises
     ------
     SweepConfigError
         For a missing file, unknown keys, unknown systems or integrators, a step size
         that does not divide a duration or interval, and other bad entries.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> from openmm_alphaprk.workflows import load_config
+    >>> CONFIG = '''
+    ... output = "sweep-out"
+    ... [run]
+    ... duration_ps = 0.02
+    ... platform = "Reference"
+    ... energy_interval_fs = 4
+    ... [[grid]]
+    ... systems = ["water-cluster"]
+    ... integrators = ["rattle", "alpha={alpha}"]
+    ... timesteps_fs = [2, 1]
+    ... alphas = ["1/6"]
+    ... '''
+    >>> folder = tempfile.TemporaryDirectory()
+    >>> path = os.path.join(folder.name, "sweep.toml")
+    >>> with open(path, "w") as file:
+    ...     _ = file.write(CONFIG)
+    >>> config = load_config(path)
+    >>> [cell.name for cell in config.cells]  # doctest: +NORMALIZE_WHITESPACE
+    ['water-cluster__rattle__2fs__start', 'water-cluster__rattle__1fs__start',
+     'water-cluster__alpha=1_6__2fs__start', 'water-cluster__alpha=1_6__1fs__start']
+    >>> with open(path, "w") as file:
+    ...     _ = file.write(CONFIG.replace("water-cluster", "tip3p-9nm"))
+    >>> load_config(path)  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    openmm_alphaprk.workflows.sweep.config.SweepConfigError: ...: unknown system 'tip3p-9nm'; ...
+    >>> folder.cleanup()
     """
     path = Path(path)
     if not path.is_file():

@@ -148,23 +148,27 @@ def run_sweep(
 
     Parameters
     ----------
-    config
+    config : SweepConfig or str or os.PathLike
         A :class:`SweepConfig` or the path of a TOML configuration.
-    output
+    output : str or os.PathLike, optional
         Output folder (default: the configuration's ``output``).
-    scheduler, n_workers, processes
+    scheduler : str, optional
         Address of a running dask scheduler (``tcp://host:8786``; default: the
-        configuration's), else a ``LocalCluster`` started for this sweep with
-        ``n_workers`` (default: the configuration's, else 1) processes (threads in this
-        process with ``processes=False``). Each worker runs one cell at a time; on the
-        CPU platform give each run ``cpu_threads`` so that workers × threads ≤ cores.
-    retry_failed
+        configuration's). Without one, a ``LocalCluster`` is started for this sweep.
+    n_workers : int, optional
+        Workers of the ``LocalCluster`` (default: the configuration's, else 1). Each
+        worker runs one cell at a time; on the CPU platform give each run
+        ``cpu_threads`` so that workers × threads ≤ cores.
+    processes : bool, default True
+        The ``LocalCluster``'s workers are processes (False: threads in this process).
+    retry_failed : bool, default False
         Run cells again that failed in an earlier call (default: keep their error).
-    cache_dir
+    cache_dir : str or os.PathLike, optional
         Cache of prepared systems (see :func:`~openmm_alphaprk.systems.prepare_system`).
-    progress, on_row
-        Print one line per finished cell on stderr; call ``on_row`` with each row as it
-        arrives (for tests and live reports).
+    progress : bool, default True
+        Print one line per finished cell on stderr.
+    on_row : callable, optional
+        Called with each row as it arrives (for tests and live reports).
 
     Returns
     -------
@@ -177,6 +181,45 @@ def run_sweep(
         If ``dask.distributed`` is not installed (``pip install "openmm-alphaprk[sweep]"``).
     SweepConfigError
         For a bad configuration, before anything runs.
+
+    Examples
+    --------
+    Four 20 fs runs of the water cluster on one worker thread (about a second); a
+    second call finds them finished:
+
+    >>> import os, tempfile
+    >>> from openmm_alphaprk.workflows import load_config
+    >>> CONFIG = '''
+    ... output = "sweep-out"
+    ... [run]
+    ... duration_ps = 0.02
+    ... platform = "Reference"
+    ... energy_interval_fs = 4
+    ... [[grid]]
+    ... systems = ["water-cluster"]
+    ... integrators = ["rattle", "alpha={alpha}"]
+    ... timesteps_fs = [2, 1]
+    ... alphas = ["1/6"]
+    ... '''
+    >>> folder = tempfile.TemporaryDirectory()
+    >>> path = os.path.join(folder.name, "sweep.toml")
+    >>> with open(path, "w") as file:
+    ...     _ = file.write(CONFIG)
+    >>> config = load_config(path)
+    >>> from openmm_alphaprk.workflows import run_sweep
+    >>> result = run_sweep(config, processes=False, progress=False)
+    >>> result.table.name, len(result.ran), result.failed
+    ('sweep.csv', 4, [])
+    >>> for row in result.rows:  # in the configuration's order
+    ...     print(row["integrator"], row["timestep_fs"], row["steps"], row["status"])
+    rattle 2.0 10 ok
+    rattle 1.0 20 ok
+    alpha=1/6 2.0 10 ok
+    alpha=1/6 1.0 20 ok
+    >>> again = run_sweep(config, processes=False, progress=False)
+    >>> again.ran, len(again.skipped)
+    ([], 4)
+    >>> folder.cleanup()
     """
     if not isinstance(config, SweepConfig):
         config = load_config(config)
