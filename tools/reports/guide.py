@@ -8,10 +8,15 @@ Run from the repository root::
 It rewrites the generated blocks (between ``<!-- generated: NAME -->`` and ``<!-- end
 generated: NAME -->``; the prose around them is written by hand) of ``README.md``
 ("Which integrator for which job") and of the user guide's pages ``docs/integrators.md``,
-``docs/energy_mode.md`` and ``docs/platforms.md``. Every number comes from a file of
+``docs/energy_mode.md``, ``docs/platforms.md``, ``docs/smooth_forces.md``,
+``docs/own_files.md`` and ``docs/driver.md``. Every number comes from a file of
 ``docs/data/`` (the accuracy runs of ``docs/data/compositions/``, the MD benchmark of
-``docs/data/benchmarks/``, the H100 runs of ``docs/data/*/cuda_h100/``), and each block says
-which run it is from: its length, platform, machine and day (``docs/data/provenance.toml``).
+``docs/data/benchmarks/``, the H100 runs of ``docs/data/*/cuda_h100/``, the research
+record's data where a limit was measured there), and each block says which run it is from:
+its length, platform, machine and day (``docs/data/provenance.toml``). The blocks of the
+Limits sections, of platforms.md, smooth_forces.md, own_files.md and driver.md are rendered
+by ``tools.reports.guide_limits``, ``guide_platforms``, ``guide_smooth_forces`` and
+``guide_runs``.
 """
 
 from __future__ import annotations
@@ -21,7 +26,9 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
+from tools.reports import guide_limits, guide_platforms, guide_runs, guide_smooth_forces
 from tools.reports.markdown import markdown_table, read_blocks, update_page
+from tools.reports.numbers import sig, times
 from tools.reports.sources import DOCS, ROOT, Source, load
 
 #: The accuracy runs at 2 fs (water boxes, villin) and at 4 fs (water boxes).
@@ -53,23 +60,6 @@ TRIPLE_JUMP = "α-RATTLE-4 (triple-jump) α = 0"
 
 
 # ------------------------------------------------------------------ numbers as text
-def sig(value: float, digits: int = 2) -> str:
-    """``value`` to ``digits`` significant digits: 0.53, 0.010, 1.2, 3.6e-4 (e notation below 1e-3)."""
-    if value != 0 and abs(value) < 1e-3:
-        mantissa, exponent = f"{value:.{digits - 1}e}".split("e")
-        return f"{mantissa}e{int(exponent)}"
-    text = f"{value:#.{digits}g}"
-    return text.rstrip(".") if abs(value) >= 1 else text
-
-
-def times(value: float) -> str:
-    """Write a ratio as the pages do: two significant digits below 10, whole numbers above (1,300)."""
-    if value >= 10:
-        rounded = float(f"{value:.2g}") if value >= 100 else round(value)
-        return f"{rounded:,.0f}"
-    return f"{value:.2g}"
-
-
 def per_system(values: list[float], show=sig) -> str:
     """Write the values of the systems in order, ``a / b / c``."""
     return " / ".join(show(v) for v in values)
@@ -367,7 +357,8 @@ def gpu_in_short(gpu: dict) -> str:
         f"compositions cost what their RATTLE stages cost from 21k atoms on ({fixed}× RATTLE's time per "
         f"force evaluation for `alpha4=0` and `alpha6=0`, {rescale4}× for `rattle4+rescale`, {energy}× "
         "for `energy4`), and `energy4` blows up on villin at 4 fs where `alpha4=0` and "
-        "`rattle4+rescale` run ([compositions](compositions.md#on-a-gpu-cuda-on-an-h100))."
+        f"`rattle4+rescale` run ([compositions](compositions.md#on-a-gpu-cuda-on-an-h100); data: "
+        f"{_files(gpu['sources'][:2])})."
     )
 
 
@@ -377,7 +368,7 @@ def energy_mode_cost(a2: Accuracy) -> str:
     return (
         f"- The energy mode costs {evals} force evaluations per step on the shipped systems "
         f"({a2.platform}, {a2.timestep_fs:g} fs, {_days(a2.sources)}) and tracks the dynamics worse than "
-        "RATTLE at equal cost ([the energy mode](energy_mode.md))."
+        f"RATTLE at equal cost ([the energy mode](energy_mode.md); data: {_files(a2.sources)})."
     )
 
 
@@ -390,7 +381,8 @@ def not_for_production(a2: Accuracy) -> str:
         "**It is not the integrator to use for production.** On every system measured "
         f"({', '.join(SYSTEMS)}; "
         f"{a2.platform}, {a2.timestep_fs:g} fs, {a2.steps} steps from the shipped start, "
-        f"{_days(a2.sources)}), `RattleRescaleIntegrator(h, order=4)` (`rattle4+rescale`) holds the energy "
+        f"{_days(a2.sources)}; data: {_files(a2.sources)}), `RattleRescaleIntegrator(h, order=4)` "
+        "(`rattle4+rescale`) holds the energy "
         f"{holds}× better at {share} of the force evaluations and tracks the dynamics {tracks}× better "
         "([compositions](compositions.md#what-each-buys-in-short)); see "
         "[which integrator for which job](integrators.md#which-integrator-for-which-job). The energy "
@@ -476,21 +468,30 @@ def render() -> dict[Path, dict[str, str]]:
     a2, a4 = Accuracy.read(ACCURACY_2FS), Accuracy.read(ACCURACY_4FS)
     md, md_source = load(MD_BENCHMARK)
     gpu = gpu_cost()
+    order2, pme = guide_limits.order2(), guide_limits.pme()
     return {
         ROOT / "README.md": {"which integrator": readme_table(a2, a4)},
         DOCS / "integrators.md": {
             "which integrator": integrators_table(a2, a4, md, md_source, gpu),
             "gpu in short": gpu_in_short(gpu),
+            "pme tolerance": guide_limits.integrators_pme(pme),
+            "order 2": guide_limits.integrators_order2(order2),
             "energy mode cost": energy_mode_cost(a2),
+            "triple jump step": guide_limits.integrators_triple_jump(guide_limits.step_scan()),
         },
         DOCS / "energy_mode.md": {
             "not for production": not_for_production(a2),
             "what it achieves": what_it_achieves(a2, gpu),
+            "order 2": guide_limits.energy_mode_order2(order2),
         },
         DOCS / "platforms.md": {
             "rescale sync cost": rescale_sync_table(),
             "rescale gpu cost": rescale_gpu_cost(gpu),
+            **guide_platforms.blocks(a2),
         },
+        DOCS / "smooth_forces.md": guide_smooth_forces.blocks(),
+        DOCS / "own_files.md": guide_runs.own_files_blocks(),
+        DOCS / "driver.md": guide_runs.driver_blocks(),
     }
 
 

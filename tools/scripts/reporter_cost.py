@@ -154,7 +154,9 @@ def main(argv: list[str] | None = None) -> None:
             "load": list(os.getloadavg()),
             "openmm": mm.__version__,
         }
-        Path(args.json).write_text(json.dumps({"settings": settings, "rows": rows}, indent=1), encoding="utf-8")
+        Path(args.json).write_text(
+            json.dumps({"settings": settings, "rows": rows}, indent=1), encoding="utf-8"
+        )
 
 
 if __name__ == "__main__":
