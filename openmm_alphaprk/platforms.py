@@ -30,13 +30,9 @@ from ._units import InputError
 COMMON_PLATFORMS = ("CUDA", "OpenCL", "HIP")
 
 #: Standard deviation of a potential energy against the same state in double
-#: precision, σ = a (N/1000)^0.75 kJ/mol for N atoms, by force precision. Measured on
-#: smooth-PME TIP3P boxes, 10 states each (tools/scripts/energy_noise.py; docs/platforms.md):
-#: CUDA on an H100 against CUDA double, mixed 0.0016 / 0.014 / 0.037 and single
-#: 0.0030 / 0.023 / 0.042 kJ/mol for 2.7k / 21k / 72k atoms; the CPU platform against
-#: Reference 0.0009 / 0.0037 for 555 / 2.7k atoms; OpenCL (pocl) mixed 0.0014 / 0.0032
-#: and double 0.00017 / 0.00023. a bounds these: 0.0018 (mixed, CPU), 0.0026 (single),
-#: 1.2e-4 (double: the difference of two double-precision implementations, not round-off).
+#: precision, σ = a (N/1000)^0.75 kJ/mol for N atoms, by force precision: the scales a fitted
+#: to smooth-PME TIP3P boxes (tools/scripts/energy_noise.py); docs/platforms.md sets the
+#: model beside each platform's measured noise.
 _NOISE_SCALE = {"single": 2.6e-3, "mixed": 1.8e-3, "double": 1.2e-4}
 _NOISE_EXPONENT = 0.75
 #: The energy mode's default tolerance, in units of the noise σ: a target inside the

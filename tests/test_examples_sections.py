@@ -26,13 +26,12 @@ PUBLIC_MODULES = (
     "openmm_alphaprk.workflows",
 )
 #: Functions the command line is built on, outside those ``__all__`` lists.
-COMMAND_FACING = ("openmm_alphaprk.systems.definitions.file_definition",)
-#: Documented elsewhere (by the lead): ``fastest_platform`` (platforms.py) and the
-#: comparison (workflows/comparison.py, ``compare`` and its result ``Comparison``).
-NOT_HERE = {
-    "openmm_alphaprk.workflows.compare",
-    "openmm_alphaprk.workflows.Comparison",
-}
+COMMAND_FACING = (
+    "openmm_alphaprk.systems.definitions.file_definition",
+    "openmm_alphaprk.platforms.fastest_platform",
+    "openmm_alphaprk.workflows.comparison.verdict",
+)
+NOT_HERE: set[str] = set()
 
 _HEADER_LINE = re.compile(r"^-{3,}$")
 

@@ -860,7 +860,9 @@ class _StepProgram(mm.CustomIntegrator):
         return self.force_evaluations / steps if steps else float("nan")
 
     def __repr__(self) -> str:
-        return f"{type(self).__name__}(timestep={self.timestep})"
+        chosen = self.composition
+        extra = f", composition={chosen.name!r}" if chosen is not None else ""
+        return f"{type(self).__name__}(timestep={self.timestep}{extra})"
 
 
 #: A plain-number step (read in ps, as OpenMM does) above this many ps is probably meant in fs.

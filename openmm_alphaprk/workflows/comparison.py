@@ -52,7 +52,37 @@ VERLET_NOTE = "verlet = " + VERLET_IS_LEAPFROG
 
 @dataclass
 class Comparison:
-    """The runs of a comparison, its printed table and the files written."""
+    """The runs of a comparison, its printed table and the files written.
+
+    Attributes
+    ----------
+    system : str
+        The system's name.
+    summaries : list of RunSummary
+        One per row, the listed integrators first, then RATTLE at h/k.
+    table : str
+        The printed table with its notes, the gains at equal cost and the verdict.
+    output : pathlib.Path
+        The comparison's folder.
+    figure : pathlib.Path or None
+        ``energy_residuals.png``, None without ``plot``.
+    accuracy : dict of str to Horizon
+        Each row's position and velocity errors against RATTLE at h/64.
+    verdict : str
+        The one-line verdict (:func:`verdict`), "" without a RATTLE row.
+
+    Examples
+    --------
+    >>> from openmm_alphaprk.workflows import compare
+    >>> import tempfile
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     result = compare("water-cluster", ["rattle", "rattle+rescale"], f"{folder}/cmp", steps=4,
+    ...                      plot=False, progress=False, accuracy_steps=0)
+    >>> [summary.integrator for summary in result.summaries]
+    ['rattle', 'rattle+rescale']
+    >>> result.verdict.startswith("verdict: rattle+rescale is best at equal cost")
+    True
+    """
 
     system: str
     summaries: list[RunSummary]
@@ -84,27 +114,31 @@ def compare(
 
     Parameters
     ----------
-    system
+    system : str or PreparedSystem, default "tip3p-2nm"
         System name (``alphaprk systems``), path of a ``.toml`` definition, or a
         :class:`~openmm_alphaprk.systems.PreparedSystem`.
-    integrators
-        Integrator names (``rattle``, ``verlet``, ``energy``, ``alpha=<number>``).
-    output
+    integrators : sequence of str or IntegratorSpec
+        Integrator names (``rattle``, ``rattle+rescale``, ``rattle4+rescale``, ``alpha4=0``,
+        ``energy4``, ``verlet``, ``alpha=<number>``, ...); default the main job's
+        (:data:`MAIN_JOB`).
+    output : str or os.PathLike, default "alphaprk-compare"
         Folder of the comparison; a relative path is taken from the current directory
         (the default, ``alphaprk-compare``, is created there).
-    options, **keywords
+    options : RunOptions, optional
         The options of every run, a :class:`~openmm_alphaprk.runs.RunOptions` and/or
         its fields as keywords (``steps`` per integrator, ``timestep``, ``platform``,
         ``precision``, ``constraint_tolerance``, intervals, ``cache_dir``, ``progress``),
         as for :func:`~openmm_alphaprk.runs.run_nve`.
-    plot
+    **keywords
+        Fields of :class:`~openmm_alphaprk.runs.RunOptions`, replacing those of ``options``.
+    plot : bool, default True
         Write the figure (needs matplotlib).
-    equal_cost
+    equal_cost : bool, default True
         After the listed runs, also run RATTLE at h/k for the same simulated time, k the
         measured force evaluations per step of a row that takes more than one, rounded
         up (one run per distinct k; folder ``rattle_h_k``), and state each such row's
         gain at equal cost, RMS(H − E_ref) of RATTLE at h/k over the row's (table, JSON).
-    accuracy_steps
+    accuracy_steps : int, default 10
         Also give every row's position error against RATTLE at h/64 after this many
         steps from the start (a separate short run of each; 0: none), the table's
         ``pos. error`` column, and state it in the gains at equal cost. Not for
@@ -114,6 +148,23 @@ def compare(
     ------
     UnknownSystemError, UnknownIntegratorError, IncompatibleSystemError, RunDirectoryError
         Before any run starts.
+
+    Examples
+    --------
+    RATTLE and the recommended ``rattle4+rescale`` on the water cluster, a few steps (the
+    main job, :data:`MAIN_JOB`, runs 500 steps of five integrators on ``tip3p-2nm``):
+
+    >>> from openmm_alphaprk.workflows import compare
+    >>> import tempfile
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     result = compare("water-cluster", ["rattle", "rattle4+rescale"], f"{folder}/cmp", steps=4,
+    ...                      plot=False, progress=False, accuracy_steps=2)
+    >>> [summary.integrator for summary in result.summaries]  # RATTLE at h/5: the same cost
+    ['rattle', 'rattle4+rescale', 'rattle h/5']
+    >>> result.verdict.startswith("verdict: rattle4+rescale is best at equal cost")
+    True
+    >>> "closer than RATTLE at h/5" in result.verdict  # its positions, at the same cost
+    True
     """
     specs = _integrators(integrators)
     options = RunOptions.build(options, **keywords)
@@ -304,6 +355,30 @@ def verdict(summaries: Sequence[RunSummary], accuracy: dict[str, Horizon] | None
     The best row holds the energy (:func:`equal_cost_standings`) and has the largest
     position gain over RATTLE at equal cost (without position errors: the largest energy
     gain). Empty without a RATTLE row or a row to set against it.
+
+    Parameters
+    ----------
+    summaries : sequence of RunSummary
+        The comparison's rows, RATTLE and RATTLE at h/k among them.
+    accuracy : dict of str to Horizon, optional
+        Each row's errors against RATTLE at h/64 (:attr:`Comparison.accuracy`).
+
+    Returns
+    -------
+    str
+        ``"verdict: ROW is best at equal cost: ..."``, or "".
+
+    Examples
+    --------
+    >>> from openmm_alphaprk.runs import RunSummary
+    >>> from openmm_alphaprk.workflows.comparison import verdict
+    >>> def row(name, rms, evaluations=1.0):
+    ...     return RunSummary("box", name, 3, 6, 2.0, 10, 0.02, "CPU", 0.0, 0.0, 0.0, False, rms, rms,
+    ...                       10, 0.0, 0.0, 1.0, 1.0, 10, evaluations, True)
+    >>> verdict([row("rattle", 0.5), row("rattle+rescale", 1e-6), row("energy4", 0.004, 8.4),
+    ...          row("rattle h/9", 0.015)])  # doctest: +NORMALIZE_WHITESPACE
+    'verdict: rattle+rescale is best at equal cost: RMS|H - E_ref| 1e-06 kJ/mol (RATTLE 0.5);
+     the energy mode energy4: energy error 3.75x lower than RATTLE at h/9'
     """
     standings = equal_cost_standings(summaries, accuracy)
     if not standings:
