@@ -28,8 +28,9 @@ def _run(script: str, *args: str, timeout: float = 120) -> str:
         cwd=ROOT,
         capture_output=True,
         text=True,
+        encoding="utf-8",  # the scripts print α, Δ, …: not the locale's (another test may have set it to C)
         timeout=timeout,
-        env={**os.environ, "OPENMM_CPU_THREADS": "1"},
+        env={**os.environ, "OPENMM_CPU_THREADS": "1", "PYTHONUTF8": "1"},
     )
     assert result.returncode == 0, result.stdout[-2000:] + result.stderr[-4000:]
     return result.stdout
@@ -123,8 +124,9 @@ def test_make_own_files_builds_its_peptide_without_parmed():
     assert modeller.topology.getNumAtoms() == 42  # the 42 peptide atoms of tests/data/files/README.md
 
 
+@pytest.mark.slow  # ParmEd, which the script converts with, is not a dependency (sdist only: a compile)
 def test_make_own_files_runs_where_parmed_is(tmp_path):
-    pytest.importorskip("parmed")
+    pytest.importorskip("parmed", reason="make_own_files.py converts with ParmEd: pip install parmed")
     _run("make_own_files.py", str(tmp_path), timeout=600)
     assert {"peptide.prmtop", "peptide.psf", "peptide.top", "tip4pew_state.xml"} <= {
         path.name for path in tmp_path.iterdir()
@@ -186,6 +188,7 @@ def test_cuda_check_runs_its_commands_with_arguments_the_package_accepts(tmp_pat
         env=env,
         capture_output=True,
         text=True,
+        encoding="utf-8",
         timeout=120,
     )
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
