@@ -57,7 +57,18 @@ _NOT_APPLIED = (
 
 
 class LargeStepWarning(UserWarning):
-    """The step is above what the System's lightest hydrogens allow (see :func:`step_size_problem`)."""
+    """The step is above what the System's lightest hydrogens allow (see :func:`step_size_problem`).
+
+    Examples
+    --------
+    >>> import warnings
+    >>> from openmm_alphaprk.nve import LargeStepWarning
+    >>> with warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     warnings.warn("a 4 fs step with 1 hydrogen(s) of 1.01 amu ...", LargeStepWarning)
+    >>> caught[0].category.__name__
+    'LargeStepWarning'
+    """
 
 
 def step_size_problem(system: mm.System, timestep_ps: float) -> str | None:
@@ -66,6 +77,26 @@ def step_size_problem(system: mm.System, timestep_ps: float) -> str | None:
     Hydrogens of natural mass outside rigid water (those in an H–H constraint) limit a
     RATTLE-type step with constrained X–H bonds to about 2.5 fs; repartitioned to 3–4
     amu (hydrogen mass repartitioning) to about 4 fs. Rigid water alone is fine at 4 fs.
+
+    Parameters
+    ----------
+    system : openmm.System
+        The System, its constraints set.
+    timestep_ps : float
+        The step in picoseconds.
+
+    Examples
+    --------
+    >>> import openmm
+    >>> from openmm_alphaprk.nve import step_size_problem
+    >>> ch = openmm.System()
+    >>> for mass in (12.0, 1.008):
+    ...     _ = ch.addParticle(mass)
+    >>> _ = ch.addConstraint(0, 1, 0.109)  # a C-H bond constrained, as HBonds does
+    >>> step_size_problem(ch, 0.002) is None
+    True
+    >>> print(step_size_problem(ch, 0.004))  # doctest: +ELLIPSIS
+    a 4 fs step with 1 hydrogen(s) of 1.01 amu outside rigid water: ... use a step of 2 fs
     """
     masses = [system.getParticleMass(i).value_in_unit(unit.dalton) for i in range(system.getNumParticles())]
     rigid_water = set()

@@ -28,6 +28,11 @@ PUBLIC_MODULES = (
 #: Functions the command line is built on, outside those ``__all__`` lists.
 COMMAND_FACING = (
     "openmm_alphaprk.systems.definitions.file_definition",
+    "openmm_alphaprk.integrators.check_context",
+    "openmm_alphaprk.integrators.force_evaluations_per_step",
+    "openmm_alphaprk.integrators.counted_force_evaluations",
+    "openmm_alphaprk.nve.LargeStepWarning",
+    "openmm_alphaprk.nve.step_size_problem",
     "openmm_alphaprk.platforms.fastest_platform",
     "openmm_alphaprk.workflows.comparison.verdict",
 )

@@ -905,6 +905,25 @@ def check_context(integrator: mm.Integrator, context: mm.Context) -> None:
 
     For code that builds any integrator by name (``openmm.VerletIntegrator`` among them)
     and then its Context.
+
+    Parameters
+    ----------
+    integrator : openmm.Integrator
+        Any integrator; only this package's are checked.
+    context : openmm.Context
+        The Context the integrator is bound to.
+
+    Examples
+    --------
+    >>> import openmm
+    >>> from openmm_alphaprk import RattleRescaleIntegrator
+    >>> from openmm_alphaprk.integrators import check_context
+    >>> from openmm_alphaprk.systems import prepare_system
+    >>> cluster = prepare_system("water-cluster")
+    >>> cpu = openmm.Platform.getPlatformByName("CPU")
+    >>> for integrator in (openmm.VerletIntegrator(0.002), RattleRescaleIntegrator(0.002)):
+    ...     context = openmm.Context(cluster.system, integrator, cpu)
+    ...     check_context(integrator, context)  # the platform's checks and defaults; none for Verlet
     """
     if isinstance(integrator, _StepProgram):
         integrator.check_context(context)

@@ -21,12 +21,48 @@ _CLASSES_BY_KIND: dict[int, type[_StepProgram]] = {cls._kind: cls for cls in PAC
 
 
 def counted_force_evaluations(integrator: mm.Integrator) -> int | None:
-    """Return the force evaluations this package's integrator has counted; None for any other."""
+    """Return the force evaluations this package's integrator has counted; None for any other.
+
+    Parameters
+    ----------
+    integrator : openmm.Integrator
+        Any integrator.
+
+    Examples
+    --------
+    >>> import openmm
+    >>> from openmm_alphaprk import RattleIntegrator
+    >>> from openmm_alphaprk.integrators import counted_force_evaluations
+    >>> counted_force_evaluations(RattleIntegrator(0.002))  # none yet: no step taken
+    0
+    >>> counted_force_evaluations(openmm.VerletIntegrator(0.002)) is None
+    True
+    """
     return integrator.force_evaluations if isinstance(integrator, PACKAGE_INTEGRATORS) else None
 
 
 def force_evaluations_per_step(integrator: mm.Integrator) -> float:
-    """Return the mean force evaluations per step: counted by ours, one for others (``VerletIntegrator``)."""
+    """Return the mean force evaluations per step: counted by ours, one for others (``VerletIntegrator``).
+
+    Parameters
+    ----------
+    integrator : openmm.Integrator
+        Any integrator.
+
+    Examples
+    --------
+    >>> import openmm
+    >>> from openmm_alphaprk import AlphaRattleIntegrator
+    >>> from openmm_alphaprk.integrators import force_evaluations_per_step
+    >>> from openmm_alphaprk.systems import prepare_system
+    >>> cluster = prepare_system("water-cluster")
+    >>> suzuki = AlphaRattleIntegrator(0.002, 0.0, order=4)  # five RATTLE sub-steps
+    >>> context = openmm.Context(cluster.system, suzuki, openmm.Platform.getPlatformByName("CPU"))
+    >>> context.setState(cluster.state)
+    >>> suzuki.step(2)
+    >>> force_evaluations_per_step(suzuki), force_evaluations_per_step(openmm.VerletIntegrator(0.002))
+    (5.0, 1.0)
+    """
     return integrator.force_evaluations_per_step if isinstance(integrator, PACKAGE_INTEGRATORS) else 1.0
 
 
