@@ -1,16 +1,20 @@
-r"""The main job's output in the README and in getting started, from the JSON it wrote.
+r"""The README's and getting started's measured numbers: the main job's output and the test suite's time.
 
-Record a run of the main job, then write the pages (from the repository root)::
+Record a run of the main job and the suite's times, then write the pages (from the
+repository root)::
 
     python -m tools.reports.main_job record alphaprk-compare-tip3p-2nm --seconds 65 70 68
+    python -m tools.reports.main_job suite --tests 640 --seconds 400 410 420 --first-run 500
     python -m tools.reports.main_job          # rewrite the generated blocks
     python -m tools.reports.main_job --check  # exit 1 if a page is not what the data renders
 
 ``record`` copies the run's ``comparison.json`` to ``docs/data/main_job/`` (run folders
 made relative) and writes ``docs/data/main_job/timing.json``: the wall-clock seconds of the
-command in each run given, the platform, and the command. The block ``main job`` of
-``README.md`` and of ``docs/getting_started.md`` is the main job's table and verdict, with
-its length, platform, machine and day (``docs/data/provenance.toml``).
+command in each run given, the platform, and the command. ``suite`` writes
+``docs/data/main_job/test_suite.json``: the default suite's test count and its time in
+clean-clone runs (pytest's own time) and on a machine's first run (pocl compiling). The
+blocks ``main job`` and ``test suite`` of ``README.md`` and ``docs/getting_started.md`` are
+rendered from them, with the machine and day (``docs/data/provenance.toml``).
 """
 
 from __future__ import annotations
@@ -27,7 +31,9 @@ from tools.reports.sources import DATA, ROOT, load
 
 COMPARISON = "main_job/comparison.json"
 TIMING = "main_job/timing.json"
+SUITE = "main_job/test_suite.json"
 BLOCK = "main job"
+SUITE_BLOCK = "test suite"
 PAGES = (ROOT / "README.md", ROOT / "docs" / "getting_started.md")
 
 
@@ -77,6 +83,30 @@ def render() -> str:
     return "\n\n".join([lead, markdown_table(header, rows), f"**{comparison['verdict']}**"])
 
 
+def render_suite() -> str:
+    """Return the test suite's sentence: its size and its time from clean clones and on a first run."""
+    suite, source = load(SUITE)
+    runs = ", ".join(_minutes(s) for s in suite["wall_seconds"])
+    return (
+        f"The default suite ({suite['tests']} tests, the package's doctests among them) runs in "
+        f"parallel, one process per core (pytest-xdist; `-n 0` runs it in one process): {runs} in "
+        f"{len(suite['wall_seconds'])} runs from a clean clone on {source.machine}, "
+        f"{_minutes(suite['first_run_seconds'])} on a machine's first run, while pocl compiles (and "
+        f"caches) the OpenCL kernels. Data: {source.cite()}."
+    )
+
+
+def record_suite(tests: int, seconds: list[float], first_run: float) -> None:
+    """Write the default suite's test count and times to docs/data/main_job/test_suite.json."""
+    suite = {"tests": tests, "wall_seconds": seconds, "first_run_seconds": first_run}
+    (DATA / SUITE).write_text(json.dumps(suite, indent=2) + "\n", encoding="utf-8")
+
+
+def blocks() -> dict[str, str]:
+    """Return the generated blocks of the README and getting started, by name."""
+    return {BLOCK: render(), SUITE_BLOCK: render_suite()}
+
+
 def record(run: Path, seconds: list[float], platform: str, command: str = "alphaprk compare") -> None:
     """Copy a main job's ``comparison.json`` into docs/data/main_job/ and write its timing."""
     comparison = json.loads((run / "comparison.json").read_text(encoding="utf-8"))
@@ -90,9 +120,14 @@ def record(run: Path, seconds: list[float], platform: str, command: str = "alpha
 
 
 def stale_pages() -> list[Path]:
-    """Return the pages whose block is not what the data renders now."""
-    block = render()
-    return [page for page in PAGES if read_blocks(page.read_text(encoding="utf-8")).get(BLOCK) != block]
+    """Return the pages whose blocks are not what the data renders now."""
+    wanted = blocks()
+    stale = []
+    for page in PAGES:
+        found = read_blocks(page.read_text(encoding="utf-8"))
+        if any(found.get(name) != text for name, text in wanted.items()):
+            stale.append(page)
+    return stale
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -102,10 +137,17 @@ def main(argv: list[str] | None = None) -> int:
     rec.add_argument("run", type=Path, help="the main job's output folder")
     rec.add_argument("--seconds", type=float, nargs="+", required=True, help="wall time of each run")
     rec.add_argument("--platform", default="CPU")
+    suite = sub.add_parser("suite", help="write the default suite's test count and times")
+    suite.add_argument("--tests", type=int, required=True, help="tests in the default suite")
+    suite.add_argument("--seconds", type=float, nargs="+", required=True, help="pytest's time, clean clones")
+    suite.add_argument("--first-run", type=float, required=True, help="pytest's time on a first run")
     parser.add_argument("--check", action="store_true", help="exit 1 if a page is stale")
     args = parser.parse_args(argv)
     if args.action == "record":
         record(args.run, args.seconds, args.platform)
+        return 0
+    if args.action == "suite":
+        record_suite(args.tests, args.seconds, args.first_run)
         return 0
     if args.check:
         stale = stale_pages()
@@ -113,8 +155,11 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{page.relative_to(ROOT)}: the main job's block is stale", file=sys.stderr)
         return 1 if stale else 0
     for page in PAGES:
-        update_page(page, {BLOCK: render()})
-    print(render())
+        missing = update_page(page, blocks())
+        if missing:
+            print(f"{page.relative_to(ROOT)} has no block {missing}", file=sys.stderr)
+            return 1
+    print("\n\n".join(blocks().values()))
     return 0
 
 
