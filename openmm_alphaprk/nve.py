@@ -10,6 +10,8 @@ with a fixed α apply them like ``openmm.VerletIntegrator``; the energy mode doe
 
 from __future__ import annotations
 
+import re
+
 import openmm as mm
 import openmm.unit as unit
 
@@ -208,6 +210,62 @@ def state_changing_forces(system: mm.System) -> list[str]:
                 "it and equilibrate first (with it, RattleIntegrator or a fixed alpha apply it)."
             )
     return messages
+
+
+#: Custom forces whose energy may use a particle's absolute coordinates (``x1``, ``y1``, ``z1`` …).
+_COORDINATE_FORCES = (mm.CustomCompoundBondForce, mm.CustomCentroidBondForce)
+_ABSOLUTE_COORDINATE = re.compile(r"(?<![\w.])[xyz]\d+\b")
+
+
+def momentum_breaking_forces(system: mm.System) -> list[str]:
+    """List what in ``system`` makes its forces not sum to zero: linear momentum is not conserved.
+
+    A ``CustomExternalForce`` (positional restraints, an external field, a tethered
+    particle), a ``CustomCompoundBondForce`` or ``CustomCentroidBondForce`` whose energy uses
+    absolute coordinates (``x1``, ``y2`` …), and particles of zero mass that are not virtual
+    sites (fixed in space, so the forces on them are not balanced by their motion). Read
+    from the System, not from a run; PME's reciprocal-space force, whose small net value is
+    round-off of the method, is not listed.
+
+    Parameters
+    ----------
+    system : openmm.System
+        The System to check (not changed).
+
+    Returns
+    -------
+    list of str
+        One line per force or group of particles; empty where the forces conserve
+        momentum.
+
+    Examples
+    --------
+    >>> import openmm
+    >>> from openmm_alphaprk.nve import momentum_breaking_forces
+    >>> system = openmm.System()
+    >>> _ = system.addParticle(1.0)
+    >>> spring = openmm.CustomExternalForce("0.5*k*(x^2 + y^2 + z^2)")
+    >>> _ = spring.addGlobalParameter("k", 100.0)
+    >>> _ = spring.addParticle(0, [])
+    >>> _ = system.addForce(spring)
+    >>> momentum_breaking_forces(system)
+    ['CustomExternalForce (force 0): an external potential on 1 particle(s)']
+    """
+    found = []
+    for index, force in enumerate(system.getForces()):
+        label = label_force(index, force)
+        if isinstance(force, mm.CustomExternalForce) and force.getNumParticles():
+            found.append(f"{label}: an external potential on {force.getNumParticles()} particle(s)")
+        elif isinstance(force, _COORDINATE_FORCES) and _ABSOLUTE_COORDINATE.search(force.getEnergyFunction()):
+            found.append(f"{label}: its energy uses absolute coordinates")
+    fixed = [
+        i
+        for i in range(system.getNumParticles())
+        if not system.isVirtualSite(i) and system.getParticleMass(i).value_in_unit(unit.dalton) == 0
+    ]
+    if fixed:
+        found.append(f"{len(fixed)} particle(s) of zero mass, fixed in space")
+    return found
 
 
 def prepare_for_nve(

@@ -160,7 +160,8 @@ def _with_pulling_force(system):
     return copy
 
 
-def test_no_real_factor_raises_before_anything_is_lost_and_says_why(spinning_cluster):
+@pytest.mark.parametrize("order", [None, 4])
+def test_no_real_factor_raises_before_anything_is_lost_and_says_why(spinning_cluster, order):
     """A force parameter changed between steps raises V above E_ref, the state unchanged.
 
     The integrator cannot tell that from a user's change (the state did not move), so
@@ -169,9 +170,10 @@ def test_no_real_factor_raises_before_anything_is_lost_and_says_why(spinning_clu
     """
     system, x, v = spinning_cluster
     pulled = _with_pulling_force(system)
-    integrator = RattleRescaleIntegrator(H)
+    integrator = RattleRescaleIntegrator(H, order=order)
     context = _context(pulled, integrator, x, v)
     integrator.check_context(context)
+    assert not integrator.removes_translation  # the pull breaks momentum: every velocity is scaled
     integrator.step(5)
     before = positions_of(context), velocities_of(context), integrator.steps_taken
     context.setParameter("k", 500.0)  # raises V by ~5,000 kJ/mol: more than the kinetic energy
@@ -298,3 +300,117 @@ def test_a_composition_is_named_by_order_or_name():
     assert RattleRescaleIntegrator(H, composition="triple-jump").composition.stages == 3
     with pytest.raises(ValueError, match="order 4"):
         RattleRescaleIntegrator(H, order=6, composition="suzuki5")
+
+
+# ---------------------------------------------------------------- the cost: sums per step
+def _per_step_sums(integrator: RattleRescaleIntegrator) -> list[str]:
+    """The sums of the program outside the blocks that run once per call or when the state was set."""
+    once = ("check_system", "state_check", "state_moved", "rotation > 0.5")
+    sums, open_blocks = [], []
+    for line in integrator.program_listing().splitlines():
+        text = line.split(maxsplit=1)[1] if line.strip() else ""
+        if text.startswith(("if (", "while (")):
+            open_blocks.append(any(name in text for name in once))
+        elif text == "end":
+            open_blocks.pop()
+        elif "= sum(" in text and not any(open_blocks):
+            sums.append(text)
+    return sums
+
+
+@pytest.mark.parametrize("order", [None, 4])
+def test_a_periodic_box_sums_the_kinetic_energy_alone_per_step(order):
+    """Per step in a periodic box: the energy read and one sum, K; P is carried from when it was measured.
+
+    Counted twice: in the listing (outside the once-per-call and state-set blocks) and in
+    a run (``host_syncs``: 100 steps in one call take 100 sums of K and the call's one
+    comparison of its start with the last step's end).
+    """
+    integrator = RattleRescaleIntegrator(H, order=order)
+    assert [text.split(" =")[0] for text in _per_step_sums(integrator)] == ["kinetic_energy"]
+    water = prepare_system("tip3p-2nm")
+    context = mm.Context(water.system, integrator, mm.Platform.getPlatformByName("CPU"))
+    context.setState(water.state)
+    integrator.check_context(context)
+    assert not integrator.removes_rotation and integrator.removes_translation
+    integrator.step(2)
+    before = integrator.getGlobalVariableByName("host_syncs")
+    integrator.step(100)
+    assert integrator.getGlobalVariableByName("host_syncs") - before == 101
+
+
+def test_the_carried_momentum_stays_what_the_state_has_over_a_thousand_steps():
+    """PME's reciprocal-space force sums to round-off, not zero: P drifts from the value carried.
+
+    Measured on tip3p-2nm (CPU, 2026-11-27; the shipped start has |P| = 149 amu nm/ps):
+    |P − P_carried| 0.0060 after 1,000 steps, 0.019 after 10,000, and |H − E_ref| at most
+    3.3e-8 kJ/mol over those 10,000 (the scaling's error from it is (1 − s) V_cm·δP).
+    Bounds 5x above the 1,000-step values.
+    """
+    water = prepare_system("tip3p-2nm")
+    integrator = RattleRescaleIntegrator(H)
+    context = mm.Context(water.system, integrator, mm.Platform.getPlatformByName("CPU"))
+    context.setState(water.state)
+    integrator.check_context(context)
+    integrator.step(1000)
+    mass = masses(context.getSystem())
+    velocities = velocities_of(context)
+    actual = (mass[:, None] * velocities).sum(axis=0)
+    carried = np.array([integrator.getGlobalVariableByName(f"momentum_{axis}") for axis in "xyz"])
+    assert np.linalg.norm(actual - carried) < 0.03
+    assert abs(total_energy(context) - _kj(integrator.reference_energy)) < 5e-5
+
+
+@pytest.mark.parametrize("order", [None, 4])
+def test_a_harmonic_oscillator_in_an_external_potential_is_scaled_whole(order):
+    """One particle on a spring to the origin: no momentum to keep, so every velocity is scaled.
+
+    Before, the particle's whole kinetic energy counted as rigid-body motion and every step
+    was refused ("no real velocity scale").
+    """
+    system = mm.System()
+    system.addParticle(1.0)
+    spring = mm.CustomExternalForce("0.5*k*(x^2 + y^2 + z^2)")
+    spring.addGlobalParameter("k", 1000.0)
+    spring.addParticle(0, [])
+    system.addForce(spring)
+    integrator = RattleRescaleIntegrator(H, order=order)
+    context = _context(system, integrator, [[0.1, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+    integrator.check_context(context)
+    assert not integrator.removes_translation and not integrator.removes_rotation
+    energies = []
+    for _ in range(50):
+        integrator.step(4)
+        energies.append(total_energy(context))
+    assert np.ptp(energies) < 1e-9 and abs(energies[0] - _kj(integrator.reference_energy)) < 1e-9
+    assert abs(integrator.velocity_scale - 1) > 0  # it did scale
+
+
+def test_a_step_too_large_for_the_system_is_named_when_no_factor_exists():
+    """Flexible water at 2 fs: one RATTLE step's energy error exceeds K, and the message says so."""
+    import openmm.app as app
+
+    forcefield = app.ForceField("amber14/tip3p.xml")
+    modeller = app.Modeller(app.Topology(), [])
+    modeller.addSolvent(forcefield, boxSize=mm.Vec3(1.5, 1.5, 1.5) * unit.nanometers)
+    system = forcefield.createSystem(
+        modeller.topology,
+        nonbondedMethod=app.PME,
+        nonbondedCutoff=0.7 * unit.nanometers,
+        rigidWater=False,
+        removeCMMotion=False,
+    )
+    integrator = RattleRescaleIntegrator(2 * unit.femtoseconds)
+    context = mm.Context(system, integrator, mm.Platform.getPlatformByName("CPU"))
+    context.setPositions(modeller.positions)
+    mm.LocalEnergyMinimizer.minimize(context, 10.0, 200)
+    context.setVelocitiesToTemperature(300 * unit.kelvin, 1)
+    with pytest.raises(VelocityRescaleError, match=r"\(1\) too large a step for the system") as raised:
+        integrator.step(20)
+    message = str(raised.value)
+    assert "flexible water" in message
+    # the step's own error is the cause: H − E_ref after one RATTLE step above the kinetic energy
+    # (measured 471 kJ/mol against 377 internal, 1.2x, 2026-11-27)
+    import re
+
+    assert float(re.search(r"\(here ([0-9.e+-]+) of it\)", message).group(1)) > 0.5

@@ -13,6 +13,14 @@ user's change from the common platform's reordering and re-wrapping of atoms eve
 steps, which moves coordinates but not the energy. Each step program ends by storing
 ``xend``, ``vend`` and ``end_energy``.
 
+A state can only be set between calls of ``step()``, so the comparison with ``xend`` and
+``vend`` (a sum over degrees of freedom: a device synchronisation on CUDA, OpenCL and
+HIP) runs at the first step of each call: ``step()`` sets ``state_check`` and ``driven``
+before the steps and clears ``driven`` after them. A copy of the program that no
+``step()`` of this package drives (a plain ``CustomIntegrator`` deserialized from XML and
+not given back its class by :func:`~.restore.restore_integrator`) has ``driven`` = 0 and
+compares at every step.
+
 NVE integrators: both leave out OpenMM's update-context-state step, and :meth:`check_context`
 warns about the System's barostats and thermostats and about forces that are not smooth.
 """
@@ -70,8 +78,10 @@ class _ReferenceEnergy:
             "end_energy",
             "retake",
             "kinetic_energy",
+            "driven",
         ):
             self.addGlobalVariable(name, 0)
+        self.addGlobalVariable("state_check", 1)
         for name in ("xend", "vend"):
             self.addPerDofVariable(name, 0)
 
@@ -81,7 +91,8 @@ class _ReferenceEnergy:
         """Take E_ref at the first step, after a reset, and after the user changed the state.
 
         A start state that differs from the end of the previous step (a sum over
-        degrees of freedom, zero when nothing moved) opens the block; inside it the
+        degrees of freedom, zero when nothing moved, taken at the first step of a
+        ``step()`` call) opens the block; inside it the
         energy decides: the common platform's reordering and re-wrapping of atoms move
         coordinates but keep the energy. ``on_retake``: ``(variable, expression)``
         computations that run in the block after ``retake`` is set (the energy mode
@@ -92,7 +103,10 @@ class _ReferenceEnergy:
         forces were wrong on CUDA and NVIDIA's OpenCL (measured on an H100: +32
         kJ/mol in one step; not seen with pocl or Reference).
         """
+        self.beginIfBlock("state_check > 0.5")  # the first step of a step() call (module docstring)
         self._add_sum("state_moved", "(x - xend)^2 + (v - vend)^2")
+        self.addComputeGlobal("state_check", "1 - driven")
+        self.endBlock()
         self.beginIfBlock("state_moved + 1 - reference_set > 0")
         if on_moved is not None:
             on_moved()
@@ -110,6 +124,7 @@ class _ReferenceEnergy:
             self.addComputeGlobal(variable, expression)
         self.addComputeGlobal("reference_resets", "reference_resets + retake")
         self.addComputeGlobal("reference_set", "1")
+        self.addComputeGlobal("state_moved", "0")
         self.endBlock()
 
     def _add_end_state_record(self, end_energy: str) -> None:
@@ -163,6 +178,16 @@ class _ReferenceEnergy:
         self._set_automatic_energy_tolerance(system.getNumParticles(), platforms.force_precision(context))
         warn_if_not_smooth(system, who=self._holds_energy_as)  # both point at the user's call
         warn_if_state_changing(system, who=self._holds_energy_as)
+
+    def step(self, steps: int) -> None:
+        """Advance by ``steps`` steps, comparing the start state with the last step's end at the first."""
+        self.setGlobalVariableByName("state_check", 1)
+        self.setGlobalVariableByName("driven", 1)
+        try:
+            super().step(steps)
+        finally:
+            self.setGlobalVariableByName("driven", 0)
+            self.setGlobalVariableByName("state_check", 1)
 
     def _check_before_steps(self, context: mm.Context | None) -> None:
         super()._check_before_steps(context)

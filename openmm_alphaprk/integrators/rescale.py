@@ -5,24 +5,33 @@ relative to the rigid-body motion are scaled so that the total energy is E_ref a
 
     v ← v_rigid + s (v − v_rigid),   s² = (E_ref − V − K_rigid) / (K − K_rigid)
 
-v_rigid = V_cm + ω × (x − x_cm) is the rigid-body motion of the velocities after the
-RATTLE step: the centre-of-mass velocity V_cm = P/M always, and, unless the System has a
-periodic box (see :meth:`RattleRescaleIntegrator.check_context`), the rigid rotation
-ω = I⁻¹L about the centre of mass. The velocities relative to it carry no linear and no
-angular momentum, so the scaling keeps P and L (to round-off), and, since rigid motion
-keeps every distance, it keeps the velocity constraints G v = 0. K = K_rigid + K_internal
-(the cross terms vanish), V is the potential energy after the step, read with the
-step's one force evaluation. E_ref is taken and reset by the rule of
-:mod:`~.reference_energy`, as the energy mode takes it.
+v_rigid = V_cm + ω × (x − x_cm) is the rigid-body motion: the centre-of-mass velocity
+V_cm = P/M always, and, unless the System has a periodic box (see
+:meth:`RattleRescaleIntegrator.check_context`), the rigid rotation ω = I⁻¹L about the centre
+of mass. RATTLE keeps P and L (to round-off, and to the small net force of PME's reciprocal
+part), so both are measured when E_ref is taken and whenever the state was set (the
+reference check's block, :mod:`~.reference_energy`) and carried between steps; the centre
+of mass and the inertia tensor, which move with the atoms, are summed every step where ω
+is needed. The velocities relative to v_rigid carry no linear and no angular momentum, so
+the scaling keeps P and L, and, since rigid motion keeps every distance, it keeps the
+velocity constraints G v = 0. K = K_rigid + K_internal (the cross terms vanish), V is the
+potential energy after the step, read with the step's one force evaluation. E_ref is taken
+and reset by the rule of :mod:`~.reference_energy`, as the energy mode takes it.
+
+A System whose forces do not conserve momentum (an external potential, a particle fixed in
+space: :func:`openmm_alphaprk.nve.momentum_breaking_forces`) has no rigid-body motion to
+keep: :meth:`RattleRescaleIntegrator.check_context` turns it off (``translation`` = 0) and
+the step scales all the velocities, v ← s v.
 
 A step for which no real positive s exists (E_ref − V ≤ K_rigid, or no internal kinetic
 energy) is not taken: the Context keeps the state it started from, the steps after it in
 the same ``step()`` call do nothing, and ``step()`` raises
 :class:`VelocityRescaleError`, which says why.
 
-Sums over degrees of freedom per step (each a device synchronisation on CUDA, OpenCL and
-HIP): the reference check's one, the kinetic energy and the three components of P; with
-the rotation, the centre of mass, L and the inertia tensor (12 more).
+Sums over degrees of freedom (each a device synchronisation on CUDA, OpenCL and HIP): per
+step the kinetic energy, with the energy read, and without a periodic box the centre of
+mass and the inertia tensor (10 more); once per ``step()`` call the reference check's
+one; when the state was set, P (and the centre of mass and L) besides.
 """
 
 from __future__ import annotations
@@ -32,6 +41,7 @@ import math
 import openmm as mm
 import openmm.unit as unit
 
+from ..nve import momentum_breaking_forces
 from .compositions import Composition, requested_composition
 from .pieces import DEFAULT_CONSTRAINT_TOLERANCE, _StepProgram
 from .reference_energy import _ReferenceEnergy, energy_tolerance_setting
@@ -177,6 +187,7 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
 
     def _add_rescale_variables(self) -> None:
         self.addGlobalVariable("rotation", 1)  # check_context sets 0 for a periodic System
+        self.addGlobalVariable("translation", 1)  # check_context sets 0 where forces break momentum
         self.addGlobalVariable("total_mass", 0)
         for name in (
             "potential_energy",
@@ -195,6 +206,9 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         self.addGlobalVariable(VELOCITY_SCALE, 1)
         for name in ("fstart", "rigid_velocity", *(f"axis_{axis}" for axis in _AXES)):
             self.addPerDofVariable(name, 0)
+        if self._composition is not None:
+            for name in ("xstep", "vstep"):
+                self.addPerDofVariable(name, 0)
 
     # ---------------------------------------------------------------- the program
     def _build_program(self) -> None:
@@ -205,8 +219,11 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         measured on CUDA, the forces read after it were wrong; the positions after 5 steps
         differed from Reference's by 3.7e-3 nm).
         """
-        self._add_save_step_start(fstart="f")
-        self._add_reference_check(on_moved=self._add_axis_weights)
+        if self._composition is None:
+            self._add_save_step_start(fstart="f")
+        else:  # the stages overwrite x0, v0: the step's start kept for a step without a factor
+            self._add_save_step_start(xstep="x", vstep="v", fstart="f")
+        self._add_reference_check(on_moved=self._add_rigid_body_measurement)
         if self._composition is None:
             self._add_position_solve("0.5*fstart")
             self._add_velocity_update("0.5*f")
@@ -255,20 +272,38 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         for axis, unit_vector in _AXES.items():
             self.addComputePerDof(f"axis_{axis}", unit_vector)
 
-    def _add_rigid_body_motion(self) -> None:
-        """K, P and (with ``rotation``) the centre of mass, L about it, the inertia tensor and ω = I⁻¹L.
+    def _add_rigid_body_measurement(self) -> None:
+        """P and (with ``rotation``) L about the centre of mass, from the state a step starts from.
 
-        Sums of the velocities after the RATTLE step. Without ``rotation`` ω stays 0.
+        In the reference check's block: at the first step, after a reset and where the
+        state was set. Carried to the steps after it, which RATTLE keeps them for; zero
+        without ``translation`` (forces that do not conserve momentum).
         """
-        self._add_sum("kinetic_energy", "0.5*m*v*v")
+        self._add_axis_weights()
         for axis in _AXES:
             self._add_sum(f"momentum_{axis}", f"m*v*axis_{axis}")
+            self.addComputeGlobal(f"momentum_{axis}", f"translation*momentum_{axis}")
         self.beginIfBlock("rotation > 0.5")
-        for axis, unit_vector in _AXES.items():
-            self._add_sum(f"centre_{axis}", f"m*x*{unit_vector}/total_mass")
+        self._add_centre_of_mass()
         r = "(x - vector(centre_x, centre_y, centre_z))"
         for axis, unit_vector in _AXES.items():
             self._add_sum(f"angular_{axis}", f"m*cross({r}, v)*{unit_vector}")
+        self.endBlock()
+
+    def _add_centre_of_mass(self) -> None:
+        for axis, unit_vector in _AXES.items():
+            self._add_sum(f"centre_{axis}", f"m*x*{unit_vector}/total_mass")
+
+    def _add_rigid_body_motion(self) -> None:
+        """K after the RATTLE step; with ``rotation`` the centre of mass, the inertia tensor and ω = I⁻¹L.
+
+        P and L are the ones measured by :meth:`_add_rigid_body_measurement`. Without
+        ``rotation`` ω stays 0 and the step sums K alone.
+        """
+        self._add_sum("kinetic_energy", "0.5*m*v*v")
+        self.beginIfBlock("rotation > 0.5")
+        self._add_centre_of_mass()
+        r = "(x - vector(centre_x, centre_y, centre_z))"
         self._add_sum("sum_inertia", f"m*{r}^2")  # Σ m |r|²
         for axis, unit_vector in _AXES.items():  # Σ m r_a², the diagonal is Σ m |r|² − that
             self._add_sum(f"inertia_{axis}{axis}", f"m*{r}^2*{unit_vector}")
@@ -309,8 +344,8 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         :mod:`~.pieces`).
         """
         self.beginIfBlock("no_factor > 0.5")
-        self.addComputePerDof("x", "x0")
-        self.addComputePerDof("v", "v0")
+        self.addComputePerDof("x", "x0" if self._composition is None else "xstep")
+        self.addComputePerDof("v", "v0" if self._composition is None else "vstep")
         self.addComputeGlobal(RESCALE_HALTED, "1")
         self.addComputeGlobal(STEPS_TAKEN, f"{STEPS_TAKEN} - 1")  # _add_end_step counts it again
         self.endBlock()
@@ -352,21 +387,38 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
                 f"the RATTLE step blew up (potential energy {potential:.6g} kJ/mol, kinetic energy "
                 f"{kinetic:.6g} kJ/mol): reduce the step size, or minimize and equilibrate the start. {where}"
             )
+        internal = kinetic - rigid
+        residual = potential + kinetic - reference
         return (
-            f"no real velocity scale s makes K + V = E_ref: E_ref − V − K_rigid = "
-            f"{reference - potential - rigid:.6g} kJ/mol (E_ref {reference:.6g}, V after the RATTLE step "
-            f"{potential:.6g}, rigid-body kinetic energy {rigid:.6g}) against an internal kinetic energy of "
-            f"{kinetic - rigid:.6g} kJ/mol. Likely causes: the potential energy changed without the state "
-            "changing (a force parameter set between steps): call integrator.reset_reference_energy() after "
-            "such a change; or too little internal kinetic energy to absorb RATTLE's one-step energy error "
-            f"(velocities near zero): give the system velocities. {where}"
+            f"no real velocity scale s makes K + V = E_ref: after the RATTLE step H − E_ref = "
+            f"{residual:.6g} kJ/mol, more than the internal kinetic energy the scaling takes it from, "
+            f"{internal:.6g} kJ/mol (E_ref − V − K_rigid = {reference - potential - rigid:.6g}; E_ref "
+            f"{reference:.6g}, V after the step {potential:.6g}, rigid-body kinetic energy {rigid:.6g}). "
+            "Likely causes: (1) too large a step for the system: one RATTLE step's energy error should "
+            f"be a small fraction of the kinetic energy (here {abs(residual) / max(kinetic, 1e-300):.2g} of "
+            "it), e.g. flexible water or unconstrained bonds to hydrogen at 2 fs: reduce the step, or "
+            "constrain them (rigidWater=True, constraints=HBonds); (2) the potential energy changed without "
+            "the state changing (a force parameter set between steps): call "
+            "integrator.reset_reference_energy() after such a change; (3) too little internal kinetic "
+            f"energy to absorb the step's error (velocities near zero): give the system velocities. {where}"
         )
 
     def _check_system(self, context: mm.Context) -> None:
-        """Keep only the centre-of-mass velocity out of the scaling with a periodic box; warn (NVE)."""
+        """Choose what rigid-body motion the scaling keeps, from the System; warn (NVE).
+
+        P and L where the forces conserve both (no periodic box), P alone with a periodic
+        box, none where the forces do not conserve momentum
+        (:func:`~openmm_alphaprk.nve.momentum_breaking_forces`): then all the velocities are
+        scaled.
+        """
         super()._check_system(context)
-        periodic = context.getSystem().usesPeriodicBoundaryConditions()
-        self.setGlobalVariableByName("rotation", 0.0 if periodic else 1.0)
+        system = context.getSystem()
+        translation = not momentum_breaking_forces(system)
+        rotation = translation and not system.usesPeriodicBoundaryConditions()
+        if not translation and self.getGlobalVariableByName("translation"):
+            self.reset_reference_energy()  # P measured as carried must be measured again (as 0)
+        self.setGlobalVariableByName("translation", float(translation))
+        self.setGlobalVariableByName("rotation", float(rotation))
 
     # ---------------------------------------------------------------- what the user reads
     @property
@@ -383,6 +435,14 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
     def removes_rotation(self) -> bool:
         """Whether the rigid rotation is kept out of the scaling (no periodic box, or not known)."""
         return bool(self.getGlobalVariableByName("rotation"))
+
+    @property
+    def removes_translation(self) -> bool:
+        """Whether the centre-of-mass motion is kept out of the scaling (False: all velocities scaled).
+
+        False once :meth:`check_context` found forces that do not conserve momentum.
+        """
+        return bool(self.getGlobalVariableByName("translation"))
 
     def rescale_totals(self) -> dict[str, float]:
         """Totals over every step since the integrator was created.

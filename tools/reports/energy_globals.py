@@ -108,8 +108,13 @@ MEANINGS = {
     "Reference energy": {
         "reference_energy": "E_ref, the total energy the integrator holds (kJ/mol).",
         "reference_set": "0 until E_ref is taken, and after `reset_reference_energy()`; then 1.",
-        "state_moved": "Σ (x − xend)² + (v − vend)² over degrees of freedom at the step's start: 0 "
-        "when nothing changed the state since the last step (nm², (nm/ps)²).",
+        "state_moved": "Σ (x − xend)² + (v − vend)² over degrees of freedom at the first step of a "
+        "`step()` call: 0 when nothing changed the state since the last step (nm², (nm/ps)²); set "
+        "to 0 again once the reference check's block has looked at it.",
+        "state_check": "1 at the first step of a `step()` call (set by `step()`): the step compares "
+        "its start with the last step's end; the program sets it to 1 − `driven`.",
+        "driven": "1 while this package's `step()` runs the program, 0 between calls: a copy no "
+        "`step()` drives keeps `state_check` at 1 and compares at every step.",
         "start_energy": "Total energy at the step's start, taken when the state moved (kJ/mol).",
         "retake": "1 if this step takes E_ref again: the first step, after a reset, or a state set "
         "between steps whose energy differs from `end_energy` by more than max(tolerance, 1e-6 |E|).",
