@@ -136,6 +136,50 @@ def h100_composition_tests() -> str:
 
 
 # ------------------------------------------------------------------ the rescaling's cost
+#: ``alphaprk bench cost --integrators all`` (CPU) and ``core`` (OpenCL) of the program that sums K alone.
+RESCALE_NOW = (
+    "platforms/bench_cost_cpu_tip3p-2nm.json",
+    "platforms/bench_cost_cpu_tip3p-3nm.json",
+    "platforms/bench_cost_opencl_tip3p-2nm.json",
+)
+RESCALE4 = "RATTLE-4 + rescaling"
+RATTLE = "RATTLE"
+ALPHA4 = "α-RATTLE-4 α = 0"
+
+
+def rescale_cost_now() -> str:
+    """Render the present program's cost: RATTLE + rescaling against RATTLE, and on Suzuki's composition."""
+    parts, sources = [], []
+    for path in RESCALE_NOW:
+        run, run_source = load(path)
+        sources.append(run_source)
+        rows = {row["name"]: row for row in run["rows"]}
+        header = run["header"]
+        atoms = int(header.split(" atoms")[0].rsplit(" ", 1)[1])
+        platform = header.split("platform ")[1].split(";")[0]
+        rounds = header.split("median of ")[1].split(";")[0]
+        text = (
+            f"{rows[RESCALE]['ms_per_step'] / rows[RATTLE]['ms_per_step']:.2f}× RATTLE's step on {atoms:,} "
+            f"atoms ({platform}, median of {rounds}; "
+            f"{rows[RESCALE]['host_syncs_per_step']:.2f} sums per step)"
+        )
+        if RESCALE4 in rows:
+            text += (
+                f", RATTLE-4 + rescaling {rows[RESCALE4]['ms_per_step'] / rows[ALPHA4]['ms_per_step']:.2f}× "
+                "Suzuki's composition without it"
+            )
+        parts.append(text)
+    return (
+        "Since 2026-11-27 a rescaling step in a periodic box reads the energy and sums the kinetic energy, "
+        "nothing more: P is carried from when E_ref was taken or the state was set, and whether the state "
+        "was set is checked once per `step()` call. `alphaprk bench cost`, each line one run against "
+        f"RATTLE in that run ({sources[0].date}, {sources[0].machine}): "
+        + "; ".join(parts)
+        + f". Data: {files_of(sources)}. Not yet measured on a GPU; the H100 figures below are of the "
+        "program of 2026-11-26, which summed the momentum every step."
+    )
+
+
 def rescale_cost_notes(a2) -> str:
     """Render what follows the H100 cost of the rescaling: the earlier program, the sums, the CPU platform.
 
@@ -161,7 +205,7 @@ def rescale_cost_notes(a2) -> str:
         "above), so no rescaling that holds E_ref at every step can come within 1.1× of RATTLE in a "
         f"`CustomIntegrator` on this GPU; each further sum costs about {per_sum[smallest]:.2f} ms "
         f"({per_sum[smallest] / gpu[smallest]['rattle']:.0%} of a {_k(smallest)}-atom step; the momentum's "
-        "three sums against the kinetic energy alone). On the CPU platform the package's integrator costs "
+        "three sums against the kinetic energy alone). On the CPU platform the program of that day cost "
         f"{cost} RATTLE's step on {' and '.join(systems)} (the accuracy runs of {_dates(a2.sources)}, "
         "interleaved timing); the energy read alone costs "
         + " and ".join(f"{r:.2f}×" for r in cpu_read)
@@ -188,4 +232,5 @@ def blocks(a2) -> dict[str, str]:
         "h100 tests": h100_tests(),
         "h100 composition tests": h100_composition_tests(),
         "rescale cost notes": rescale_cost_notes(a2),
+        "rescale cost now": rescale_cost_now(),
     }
