@@ -86,7 +86,10 @@ class _ReferenceEnergy:
             self.addPerDofVariable(name, 0)
 
     def _add_reference_check(
-        self, on_retake: Sequence[tuple[str, str]] = (), on_moved: Callable[[], None] | None = None
+        self,
+        on_retake: Sequence[tuple[str, str]] = (),
+        on_moved: Callable[[], None] | None = None,
+        previous: tuple[str, str] = ("xend", "vend"),
     ) -> None:
         """Take E_ref at the first step, after a reset, and after the user changed the state.
 
@@ -97,6 +100,8 @@ class _ReferenceEnergy:
         coordinates but keep the energy. ``on_retake``: ``(variable, expression)``
         computations that run in the block after ``retake`` is set (the energy mode
         forgets its predictor there); ``on_moved`` adds computations at the block's start.
+        ``previous``: the per-DOF variables that hold the last step's end (positions,
+        velocities; :meth:`_add_end_state_record` writes them).
 
         The force at x0 must have been read (copied) before this block: with the
         energy read here as a step's first evaluation and ``f`` read after it, the
@@ -104,7 +109,8 @@ class _ReferenceEnergy:
         kJ/mol in one step; not seen with pocl or Reference).
         """
         self.beginIfBlock("state_check > 0.5")  # the first step of a step() call (module docstring)
-        self._add_sum("state_moved", "(x - xend)^2 + (v - vend)^2")
+        x_end, v_end = previous
+        self._add_sum("state_moved", f"(x - {x_end})^2 + (v - {v_end})^2")
         self.addComputeGlobal("state_check", "1 - driven")
         self.endBlock()
         self.beginIfBlock("state_moved + 1 - reference_set > 0")
@@ -127,11 +133,11 @@ class _ReferenceEnergy:
         self.addComputeGlobal("state_moved", "0")
         self.endBlock()
 
-    def _add_end_state_record(self, end_energy: str) -> None:
-        """Store the state the step ends in (``xend``, ``vend``) and its total energy ``end_energy``."""
+    def _add_end_state_record(self, end_energy: str, into: tuple[str, str] = ("xend", "vend")) -> None:
+        """Store the state the step ends in (``into``: positions, velocities) and its total energy."""
         self.addComputeGlobal("end_energy", end_energy)
-        self.addComputePerDof("xend", "x")
-        self.addComputePerDof("vend", "v")
+        self.addComputePerDof(into[0], "x")
+        self.addComputePerDof(into[1], "v")
 
     # ---------------------------------------------------------------- what the user sets and reads
     def reset_reference_energy(self) -> None:

@@ -220,10 +220,14 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         differed from Reference's by 3.7e-3 nm).
         """
         if self._composition is None:
-            self._add_save_step_start(fstart="f")
+            # x0, v0 hold the last step's end (written at the end of the step): the start of
+            # this one unless the state was set, which the reference check's block copies
+            self.addComputeGlobal("step_force_evaluations", "0")
+            self.addComputePerDof("fstart", "f")
+            self._add_reference_check(on_moved=self._add_moved_start, previous=("x0", "v0"))
         else:  # the stages overwrite x0, v0: the step's start kept for a step without a factor
             self._add_save_step_start(xstep="x", vstep="v", fstart="f")
-        self._add_reference_check(on_moved=self._add_rigid_body_measurement)
+            self._add_reference_check(on_moved=self._add_rigid_body_measurement)
         if self._composition is None:
             self._add_position_solve("0.5*fstart")
             self._add_velocity_update("0.5*f")
@@ -249,7 +253,8 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         self.endBlock()
         self._add_end_state_record(
             "potential_energy + rigid_kinetic_energy + scale_squared*internal;"
-            "internal = kinetic_energy - rigid_kinetic_energy"
+            "internal = kinetic_energy - rigid_kinetic_energy",
+            into=("xend", "vend") if self._composition is not None else ("x0", "v0"),
         )
         self.addComputeGlobal(
             "sum_rattle_residual_squared", f"sum_rattle_residual_squared + {RATTLE_RESIDUAL}^2"
@@ -271,6 +276,12 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         """
         for axis, unit_vector in _AXES.items():
             self.addComputePerDof(f"axis_{axis}", unit_vector)
+
+    def _add_moved_start(self) -> None:
+        """Where the state was set: the step starts from it (x0, v0), and P (and L) are measured."""
+        self.addComputePerDof("x0", "x")
+        self.addComputePerDof("v0", "v")
+        self._add_rigid_body_measurement()
 
     def _add_rigid_body_measurement(self) -> None:
         """P and (with ``rotation``) L about the centre of mass, from the state a step starts from.
