@@ -138,6 +138,8 @@ def h100_composition_tests() -> str:
 # ------------------------------------------------------------------ the rescaling's cost
 #: ``alphaprk bench cost --integrators all`` (CPU) and ``core`` (OpenCL) of the program that sums K alone.
 RESCALE_NOW = (
+    "platforms/bench_cost_cpu_tip3p-2nm_7rounds.json",
+    "platforms/bench_cost_cpu_tip3p-3nm_7rounds.json",
     "platforms/bench_cost_cpu_tip3p-2nm.json",
     "platforms/bench_cost_cpu_tip3p-3nm.json",
     "platforms/bench_cost_opencl_tip3p-2nm.json",
