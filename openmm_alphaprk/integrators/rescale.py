@@ -108,7 +108,8 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
     once after creating the Context: it shows the integrator whether the System has a
     periodic box, where angular momentum is not conserved and only the centre-of-mass
     velocity is kept out of the scaling (without the call the rigid rotation is taken
-    out too, which keeps everything right at 12 more sums per step), and the platform's
+    out too, which keeps everything right at 10 more sums per step), whether its forces
+    conserve momentum (if not, every velocity is scaled), and the platform's
     precision behind the default energy tolerance.
 
     Parameters
