@@ -15,6 +15,7 @@ import re
 import openmm as mm
 import openmm.unit as unit
 
+from .platforms import massless_particles
 from .smooth_forces import (
     DEFAULT_SWITCH_WIDTH,
     SMOOTH_EWALD_TOLERANCE,
@@ -258,11 +259,7 @@ def momentum_breaking_forces(system: mm.System) -> list[str]:
             found.append(f"{label}: an external potential on {force.getNumParticles()} particle(s)")
         elif isinstance(force, _COORDINATE_FORCES) and _ABSOLUTE_COORDINATE.search(force.getEnergyFunction()):
             found.append(f"{label}: its energy uses absolute coordinates")
-    fixed = [
-        i
-        for i in range(system.getNumParticles())
-        if not system.isVirtualSite(i) and system.getParticleMass(i).value_in_unit(unit.dalton) == 0
-    ]
+    fixed = [i for i in massless_particles(system) if not system.isVirtualSite(i)]
     if fixed:
         found.append(f"{len(fixed)} particle(s) of zero mass, fixed in space")
     return found
