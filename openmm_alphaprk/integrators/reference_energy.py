@@ -90,6 +90,7 @@ class _ReferenceEnergy:
         on_retake: Sequence[tuple[str, str]] = (),
         on_moved: Callable[[], None] | None = None,
         previous: tuple[str, str] = ("xend", "vend"),
+        carried_tolerance: str | None = None,
     ) -> None:
         """Take E_ref at the first step, after a reset, and after the user changed the state.
 
@@ -101,7 +102,9 @@ class _ReferenceEnergy:
         computations that run in the block after ``retake`` is set (the energy mode
         forgets its predictor there); ``on_moved`` adds computations at the block's start.
         ``previous``: the per-DOF variables that hold the last step's end (positions,
-        velocities; :meth:`_add_end_state_record` writes them).
+        velocities; :meth:`_add_end_state_record` writes them). ``carried_tolerance``: an
+        expression (kJ/mol) added to the energy test's tolerance, for a program whose last
+        step may have ended without reading its energy (``end_energy`` then carried).
 
         The force at x0 must have been read (copied) before this block: with the
         energy read here as a step's first evaluation and ``f`` read after it, the
@@ -121,7 +124,8 @@ class _ReferenceEnergy:
         self.addComputeGlobal(
             "retake",
             "max(1 - reference_set, step(abs(start_energy - end_energy) - same));"
-            f"same = max(energy_tolerance, {SAME_ENERGY}*abs(end_energy))",
+            f"same = max(energy_tolerance, {SAME_ENERGY}*abs(end_energy))"
+            + ("" if carried_tolerance is None else f" + {carried_tolerance}"),
         )
         self.addComputeGlobal("reference_energy", "select(retake, start_energy, reference_energy)")
         # H − E_ref at the step's start is end_energy − E_ref (zero after a retake)

@@ -31,16 +31,21 @@ the same ``step()`` call do nothing, and ``step()`` raises
 Sums over degrees of freedom (each a device synchronisation on CUDA, OpenCL and HIP): per
 step the kinetic energy, with the energy read, and without a periodic box the centre of
 mass and the inertia tensor (10 more); once per ``step()`` call the reference check's
-one; when the state was set, P (and the centre of mass and L) besides.
+one; when the state was set, P (and the centre of mass and L) besides. With
+``rescale_interval`` N > 1 the per-step ones (and the energy read) come at every N-th step
+only; the steps between are RATTLE's (or the composition's) and copy the state they end
+in (x0, v0; or ``xend``, ``vend`` for a composition), one per-DOF step.
 """
 
 from __future__ import annotations
 
 import math
+import numbers
 
 import openmm as mm
 import openmm.unit as unit
 
+from .._units import InputError
 from ..nve import momentum_breaking_forces
 from .compositions import Composition, requested_composition
 from .pieces import DEFAULT_CONSTRAINT_TOLERANCE, _StepProgram
@@ -61,6 +66,33 @@ _RIGID_VELOCITY = (
 #: unchanged for any System that can rotate, and finite for a linear one (whose rotation
 #: about its axis moves no atom).
 _INERTIA_REGULARIZATION = 1e-12
+
+
+#: On a retake of E_ref (``rescale_interval`` > 1): the interval starts again from the new E_ref.
+_INTERVAL_RESTART = (("rescale_count", "select(retake, 0, rescale_count)"),)
+#: Added to the reference check's energy tolerance after a step between rescalings, whose
+#: end energy was not read: twice the largest |H − E_ref| a rescaling has removed.
+_EXCURSION_TOLERANCE = "step(rescale_count - 0.5)*2*rescale_excursion"
+
+
+def rescale_interval_setting(rescale_interval: object) -> int:
+    """Validate a ``rescale_interval`` argument: a positive integer (``10``, ``10.0``), returned as int.
+
+    Raises
+    ------
+    InputError
+        For anything else (0, a negative number, a fraction, a bool, text).
+    """
+    value = rescale_interval
+    integral = isinstance(value, numbers.Integral) and not isinstance(value, bool)
+    if isinstance(value, numbers.Real) and not isinstance(value, bool) and not integral:
+        integral = math.isfinite(float(value)) and float(value).is_integer()
+    if not integral or int(value) < 1:
+        raise InputError(
+            f"rescale_interval must be a positive integer (rescale every N-th step), got {value!r}: "
+            "give e.g. rescale_interval=10, or 1 (the default) to rescale every step."
+        )
+    return int(value)
 
 
 class VelocityRescaleError(RuntimeError):
@@ -132,11 +164,27 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
     composition : str or Composition, optional
         A composition by name (:data:`~.compositions.COMPOSITIONS`) or a
         :class:`~.compositions.Composition`, instead of ``order``.
+    rescale_interval : int, default 1
+        N: rescale after every N-th step only. The steps between are plain RATTLE (or
+        the composition): no energy read and no sum, H drifting from E_ref as RATTLE's
+        does until the next rescaling step puts it back. N = 1 is the program without
+        the interval. The count (``rescale_count``, steps since the last rescaling) is a
+        global of the program: it runs on across ``step()`` calls (``step(7)`` then
+        ``step(3)`` with N = 10 rescales after the 10th step), is saved in checkpoints
+        and with the integrator's XML, and starts again from 0 whenever E_ref is taken
+        (the first step, :meth:`reset_reference_energy`, a state set by the user:
+        ``setState`` and ``setPositions`` included), so the first rescaling is the N-th
+        step after that. After a step between rescalings the energy the step ended
+        with was not read: a state set then is told from the common platform's
+        reordering by its energy against the last rescaled step's, within the
+        tolerance plus twice the largest |H − E_ref| a rescaling has removed.
 
     Raises
     ------
     VelocityRescaleError
         From :meth:`step`, for a step after which no real scale factor exists.
+    InputError
+        For a ``rescale_interval`` that is not a positive integer.
 
     See Also
     --------
@@ -163,6 +211,20 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
     >>> residual = state.getKineticEnergy() + state.getPotentialEnergy() - integrator.reference_energy
     >>> abs(residual) < integrator.energy_tolerance  # H held at E_ref
     True
+
+    Rescaling every 10th step only: H is E_ref after steps 10, 20, …, and moves as
+    RATTLE's between them.
+
+    >>> every_tenth = RattleRescaleIntegrator(2 * unit.femtoseconds, rescale_interval=10)
+    >>> context = openmm.Context(water.system, every_tenth, openmm.Platform.getPlatformByName("Reference"))
+    >>> context.setState(water.state)
+    >>> every_tenth.check_context(context)
+    >>> every_tenth.step(7)
+    >>> every_tenth.step(3)  # the count runs on across calls: this call ends with a rescaling
+    >>> state = context.getState(getEnergy=True)
+    >>> residual = state.getKineticEnergy() + state.getPotentialEnergy() - every_tenth.reference_energy
+    >>> abs(residual) < every_tenth.energy_tolerance, every_tenth.rescalings
+    (True, 1)
     """
 
     _kind = 3
@@ -176,12 +238,16 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         energy_tolerance: unit.Quantity | float | None = None,
         order: int | None = None,
         composition: str | Composition | None = None,
+        rescale_interval: int = 1,
     ) -> None:
         tolerance = energy_tolerance_setting(energy_tolerance)
         self._composition = requested_composition(order, composition)
+        self._rescale_interval = rescale_interval_setting(rescale_interval)
         super().__init__(timestep, constraint_tolerance)
         self._add_reference_energy_variables(tolerance)
         self._add_rescale_variables()
+        if self._rescale_interval > 1:
+            self._add_interval_variables(self._rescale_interval)
         if self._composition is not None:
             self._add_composition_record(self._composition)
         self._add_step(self._build_program, update_context_state=False, halted=RESCALE_HALTED)
@@ -211,6 +277,12 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
             for name in ("xstep", "vstep"):
                 self.addPerDofVariable(name, 0)
 
+    def _add_interval_variables(self, interval: int) -> None:
+        """Declare the interval's globals (``rescale_interval`` > 1 only: N = 1 is the plain program)."""
+        self.addGlobalVariable("rescale_interval", interval)
+        for name in ("rescale_count", "rescalings", "rescale_excursion"):
+            self.addGlobalVariable(name, 0)
+
     # ---------------------------------------------------------------- the program
     def _build_program(self) -> None:
         """Add the RATTLE step, then the rigid-body motion, the scale factor and the scaled velocities.
@@ -220,25 +292,65 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         measured on CUDA, the forces read after it were wrong; the positions after 5 steps
         differed from Reference's by 3.7e-3 nm).
         """
+        interval = self._rescale_interval > 1
+        check = {"on_retake": _INTERVAL_RESTART, "carried_tolerance": _EXCURSION_TOLERANCE} if interval else {}
         if self._composition is None:
             # x0, v0 hold the last step's end (written at the end of the step): the start of
             # this one unless the state was set, which the reference check's block copies
             self.addComputeGlobal("step_force_evaluations", "0")
             self.addComputePerDof("fstart", "f")
-            self._add_reference_check(on_moved=self._add_moved_start, previous=("x0", "v0"))
+            self._add_reference_check(on_moved=self._add_moved_start, previous=("x0", "v0"), **check)
         else:  # the stages overwrite x0, v0: the step's start kept for a step without a factor
             self._add_save_step_start(xstep="x", vstep="v", fstart="f")
-            self._add_reference_check(on_moved=self._add_rigid_body_measurement)
+            self._add_reference_check(on_moved=self._add_rigid_body_measurement, **check)
+        if interval:
+            self.addComputeGlobal("rescale_count", "rescale_count + 1")
         if self._composition is None:
             self._add_position_solve("0.5*fstart")
             self._add_velocity_update("0.5*f")
         else:
             self._add_leading_substeps(self._composition, last=self._composition.stages)
+        if interval:
+            self._add_plain_step_end()
+            self.beginIfBlock("rescale_count > rescale_interval - 0.5")
+        self._add_rescaling()
+        if interval:
+            self._add_interval_restart()
+            self.endBlock()
+        self._add_end_step()
+
+    def _add_rescaling(self) -> None:
+        """The rigid-body motion, the scale factor, the halt without one and the scaled velocities."""
         self._add_rigid_body_motion()
         self._add_scale_factor()
         self._add_halt_without_factor()
         self._add_scaling()
-        self._add_end_step()
+
+    def _add_plain_step_end(self) -> None:
+        """Between rescalings (``rescale_count`` < N): record the state the step ends in, nothing else.
+
+        No energy read and no sum: the step costs what RATTLE's (or the composition's) does
+        but for this per-DOF copy. ``end_energy`` keeps the last rescaled step's value
+        (≈ E_ref); the reference check widens its energy test by the excursion for that
+        (:data:`_EXCURSION_TOLERANCE`).
+        """
+        self.beginIfBlock("rescale_count < rescale_interval - 0.5")
+        into = ("xend", "vend") if self._composition is not None else ("x0", "v0")
+        self.addComputePerDof(into[0], "x")
+        self.addComputePerDof(into[1], "v")
+        self.endBlock()
+
+    def _add_interval_restart(self) -> None:
+        """After a rescaling: count it, keep the largest |H − E_ref| it removed, start the next interval.
+
+        A step without a factor (halted) leaves ``rescale_count`` at N − 1, so that the
+        step taken again from the same start is a rescaling step.
+        """
+        self.addComputeGlobal("rescalings", "rescalings + 1 - no_factor")
+        self.addComputeGlobal(
+            "rescale_excursion", f"max(rescale_excursion, (1 - no_factor)*abs({RATTLE_RESIDUAL}))"
+        )
+        self.addComputeGlobal("rescale_count", "no_factor*(rescale_interval - 1)")
 
     def _add_scaling(self) -> None:
         """Scale the velocities relative to the rigid-body motion; record the state the step ends in."""
@@ -444,6 +556,19 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         return self.getGlobalVariableByName(RATTLE_RESIDUAL) * unit.kilojoules_per_mole
 
     @property
+    def rescale_interval(self) -> int:
+        """N: the velocities are rescaled every N-th step (1: every step)."""
+        names = {self.getGlobalVariableName(i) for i in range(self.getNumGlobalVariables())}
+        return int(self.getGlobalVariableByName("rescale_interval")) if "rescale_interval" in names else 1
+
+    @property
+    def rescalings(self) -> int:
+        """Number of steps that rescaled the velocities (every step for ``rescale_interval`` 1)."""
+        if self.rescale_interval == 1:
+            return self.steps_taken
+        return int(self.getGlobalVariableByName("rescalings"))
+
+    @property
     def removes_rotation(self) -> bool:
         """Whether the rigid rotation is kept out of the scaling (no periodic box, or not known)."""
         return bool(self.getGlobalVariableByName("rotation"))
@@ -463,18 +588,20 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         -------
         A dict with ``steps``, ``reference_resets``, ``force_evaluations_per_step``,
         ``rms_rattle_residual`` (RMS of H − E_ref after each RATTLE step, before its
-        scaling: the energy error the rescaling removed, kJ/mol) and
+        scaling: the energy error the rescaling removed, kJ/mol; with ``rescale_interval``
+        N > 1 over the rescaling steps: the error of N steps) and
         ``max_abs_scale_change`` (max |s − 1|); NaN before the first step.
         """
         steps = self.steps_taken
+        rescaled = self.rescalings
         squares = self.getGlobalVariableByName("sum_rattle_residual_squared")
         return {
             "steps": steps,
             "reference_resets": int(self.getGlobalVariableByName("reference_resets")),
             "force_evaluations_per_step": self.force_evaluations_per_step,
-            "rms_rattle_residual": (squares / steps) ** 0.5 if steps else float("nan"),
+            "rms_rattle_residual": (squares / rescaled) ** 0.5 if rescaled else float("nan"),
             "max_abs_scale_change": self.getGlobalVariableByName("max_abs_scale_change")
-            if steps
+            if rescaled
             else float("nan"),
         }
 

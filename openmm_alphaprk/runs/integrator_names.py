@@ -13,6 +13,11 @@ Names (:data:`VOCABULARY`, in the order ``--help`` lists them):
     :class:`~openmm_alphaprk.RattleRescaleIntegrator` on the default fourth- or
     sixth-order composition of RATTLE steps (``order=4``, ``order=6``): the
     composition's trajectory, its energy held at E_ref by the rescaling.
+``rattle+rescale@<N>``, ``rattle4+rescale@<N>``, ``rattle6+rescale@<N>``
+    The same, rescaling every N-th step only (``rescale_interval=N``; ``rattle+rescale@10``);
+    the steps between are plain RATTLE (or the composition), with no energy read and no
+    sum. ``@1`` is the name without it. Written after a composition:
+    ``rattle4+rescale:triple-jump@10``.
 ``alpha=<number>``
     :class:`~openmm_alphaprk.AlphaRattleIntegrator` with that fixed α; fractions
     are accepted (``alpha=1/6``). ``alpha=0`` is RATTLE.
@@ -109,6 +114,13 @@ VOCABULARY = (
         "rescaling (9 evaluations/step)",
     ),
     IntegratorName(
+        "rattle+rescale@<N>",
+        "rescale",
+        2,
+        "the same rescaling every N-th step only (rattle+rescale@10; also rattle4+rescale@N, "
+        "rattle6+rescale@N): the steps between are plain RATTLE, no energy read, no sum",
+    ),
+    IntegratorName(
         "alpha=<number>",
         "alpha",
         2,
@@ -147,7 +159,9 @@ VOCABULARY = (
     IntegratorName("energy6", "energy", 6, "the energy mode on the default sixth-order composition"),
     IntegratorName("verlet", "verlet", 2, VERLET_IS_LEAPFROG),
 )
-_BY_NAME = {entry.name.removesuffix("=<number>"): entry for entry in VOCABULARY}
+_BY_NAME = {
+    entry.name.removesuffix("=<number>"): entry for entry in VOCABULARY if not entry.name.endswith("@<N>")
+}
 
 #: The names, in the vocabulary's order (``rattle, alpha=<number>, …, verlet``), for ``--help``.
 INTEGRATOR_NAMES = ", ".join(entry.name for entry in VOCABULARY)
@@ -168,6 +182,7 @@ class IntegratorSpec:
     text: str = ""
     order: int = 2
     composition: str | None = None
+    rescale_interval: int = 1
 
     @property
     def name(self) -> str:
@@ -196,7 +211,8 @@ class IntegratorSpec:
 def parse_integrator(text: str | IntegratorSpec) -> IntegratorSpec:
     """Parse an integrator name of :data:`VOCABULARY` (any case; white space is ignored).
 
-    ``rattle``, ``rattle+rescale``, ``verlet``, ``energy``, ``energy4``, ``alpha=<x>``, ``alpha4=<x>``.
+    ``rattle``, ``rattle+rescale``, ``verlet``, ``energy``, ``energy4``, ``alpha=<x>``, ``alpha4=<x>``;
+    ``rattle+rescale@<N>`` (and ``rattle4+rescale@<N>`` …) with ``rescale_interval`` N.
 
     Raises
     ------
@@ -206,6 +222,7 @@ def parse_integrator(text: str | IntegratorSpec) -> IntegratorSpec:
     if isinstance(text, IntegratorSpec):
         return text
     cleaned = re.sub(r"\s+", "", str(text)).lower()
+    interval, cleaned = _rescale_interval_of(text, cleaned)
     named, colon, chosen = cleaned.partition(":")
     prefix, equals, number = named.partition("=")
     entry = _BY_NAME.get(prefix)
@@ -223,6 +240,16 @@ def parse_integrator(text: str | IntegratorSpec) -> IntegratorSpec:
                 f"use one of {', '.join(fitting)}."
             )
     composition_name = chosen if colon else None
+    if interval is not None and (entry is None or entry.kind != "rescale" or equals):
+        raise UnknownIntegratorError(
+            f"{text!r}: only rattle+rescale, rattle4+rescale and rattle6+rescale take a rescaling "
+            "interval @N (e.g. rattle+rescale@10)."
+        )
+    if interval is not None:
+        canonical = cleaned if interval == 1 else f"{cleaned}@{interval}"
+        return IntegratorSpec(
+            entry.kind, text=canonical, order=entry.order, composition=composition_name, rescale_interval=interval
+        )
     if entry is not None and not entry.takes_number and not equals:
         return IntegratorSpec(entry.kind, text=cleaned, order=entry.order, composition=composition_name)
     if entry is not None and entry.takes_number and re.fullmatch(r"[-+0-9.e/]+", number):
@@ -238,8 +265,25 @@ def parse_integrator(text: str | IntegratorSpec) -> IntegratorSpec:
         f"unknown integrator {text!r}; use one of: rattle, rattle+rescale, verlet, energy, energy4, "
         "alpha=<number>, alpha4=<number> (e.g. alpha=0.5, alpha=1/6, alpha4=0), energy6, alpha6=<number>, "
         "rattle4+rescale, rattle6+rescale; the composed ones optionally on a named composition "
-        "(energy4:triple-jump)."
+        "(energy4:triple-jump); the rescaling ones optionally every N-th step (rattle+rescale@10)."
     )
+
+
+def _rescale_interval_of(text: object, cleaned: str) -> tuple[int | None, str]:
+    """Split a rescaling interval ``@N`` off a cleaned name (before or after a composition).
+
+    Returns the interval (None without ``@``) and the name without it.
+    """
+    named, at, rest = cleaned.partition("@")
+    if not at:
+        return None, cleaned
+    number, colon, composition = rest.partition(":")
+    if not re.fullmatch(r"[0-9]+", number) or int(number) < 1 or "@" in composition:
+        raise UnknownIntegratorError(
+            f"{text!r}: the rescaling interval after '@' must be a positive integer, the rescaling every "
+            "N-th step; write e.g. rattle+rescale@10 (or rattle4+rescale:triple-jump@10)."
+        )
+    return int(number), named + colon + composition
 
 
 #: Display labels of the names without a number (tables, figures, benchmarks, reports).
@@ -256,7 +300,7 @@ def label(spec: str | IntegratorSpec) -> str:
     """Return the display label of an integrator name: ``alpha=1/6`` → ``α-RATTLE α = 1/6``.
 
     The one set of labels the benchmarks, reports and figures use (``RATTLE``,
-    ``RATTLE + rescaling``, ``VerletIntegrator``, ``α-RATTLE α = x``, ``α-RATTLE-4 α = x``, ``α-RATTLE energy
+    ``RATTLE + rescaling``, ``RATTLE + rescaling every 10 steps``, ``VerletIntegrator``, ``α-RATTLE α = x``, ``α-RATTLE-4 α = x``, ``α-RATTLE energy
     mode``, ``α-RATTLE-4 energy mode``); ``x`` is written as given (fractions kept).
     """
     spec = parse_integrator(spec)
@@ -265,8 +309,11 @@ def label(spec: str | IntegratorSpec) -> str:
         family = f"RATTLE-{spec.order}"
     if spec.composition is not None:
         family += f" ({spec.composition})"
+    every = f" every {spec.rescale_interval} steps" if spec.rescale_interval > 1 else ""
     if spec.kind == "rescale" and spec.order != 2:
-        return f"{family} + rescaling"
+        return f"{family} + rescaling{every}"
+    if spec.kind == "rescale":
+        return f"RATTLE + rescaling{every}"
     if spec.kind == "energy":
         return f"{family} energy mode"
     if spec.kind != "alpha":
@@ -290,7 +337,11 @@ def make_integrator(
         return RattleIntegrator(timestep, constraint_tolerance)
     if spec.kind == "rescale":
         return RattleRescaleIntegrator(
-            timestep, constraint_tolerance, order=spec.order, composition=spec.composition
+            timestep,
+            constraint_tolerance,
+            order=spec.order,
+            composition=spec.composition,
+            rescale_interval=spec.rescale_interval,
         )
     if spec.kind == "alpha":
         return AlphaRattleIntegrator(
