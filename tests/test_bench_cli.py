@@ -19,3 +19,19 @@ def test_bench_forwards_to_each_benchmark():
         )
     result = subprocess.run([ALPHAPRK, "bench", "speed"], capture_output=True, text=True, timeout=120)
     assert result.returncode == 2 and "invalid choice: 'speed'" in result.stderr
+
+
+def test_cost_help_names_the_system_and_integrator_options(capsys):
+    from openmm_alphaprk.benchmarks.cost import main
+
+    with pytest.raises(SystemExit) as exit_info:
+        main(["--help"])
+    assert exit_info.value.code == 0
+    text = capsys.readouterr().out
+    for option in (
+        "--system NAME",
+        "--hydrogen-mass AMU",
+        "--integrators NAME [NAME ...]",
+        "rattle4+rescale",
+    ):
+        assert option in text

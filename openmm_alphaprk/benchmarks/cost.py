@@ -1,9 +1,11 @@
-"""Cost benchmark: ms/step and force evaluations/step against ``VerletIntegrator``.
+"""Cost benchmark: ms/step, ns/day and force evaluations/step against a baseline integrator.
 
-Every integrator starts from the same equilibrated TIP3P state on the same platform
-and step; the timings are interleaved over several rounds and the median is taken,
-so the ratios to ``VerletIntegrator`` come from the same run on the same machine.
-A separate short pass records the RMS of H − E0 (every step) for each integrator.
+Every integrator starts from the same equilibrated state (a TIP3P box built here, or a
+package system such as ``tip3p-3nm``, ``villin`` or ``dhfr``) on the same platform and
+step; the timings are interleaved over several rounds and the median is taken, so the
+ratios to the first integrator (``VerletIntegrator`` in the core set) come from the same
+run on the same machine. A separate short pass records the RMS of H − E0 (every step)
+for each integrator.
 
 The command is ``alphaprk bench cost``; ``--help`` lists its options.
 """
@@ -11,6 +13,7 @@ The command is ``alphaprk bench cost``; ``--help`` lists its options.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import statistics
 import sys
@@ -20,6 +23,7 @@ from dataclasses import asdict, dataclass
 from functools import partial
 
 import openmm as mm
+import openmm.unit as unit
 
 from ..integrators import (
     PACKAGE_INTEGRATORS,
@@ -28,8 +32,10 @@ from ..integrators import (
     force_evaluations_per_step,
 )
 from ..observables import energy_residuals, rms
-from ..runs.integrator_names import label, make_integrator
-from ..systems import PreparedSystem, build_water_box
+from ..runs.integrator_names import UnknownIntegratorError, label, make_integrator, parse_integrator
+from ..systems import PreparedSystem, build_water_box, list_systems, prepare_system
+from ..systems.definitions import DefinitionError
+from ..systems.files import repartition_hydrogen_mass
 
 
 @dataclass
@@ -37,7 +43,9 @@ class BenchmarkRow:
     """One integrator's measurements.
 
     ``time_ratio`` is against the first row; ``ratio_per_evaluation`` is the step time
-    per force evaluation against RATTLE's (NaN without that row).
+    per force evaluation against RATTLE's (NaN without that row); ``ns_per_day`` is the
+    simulated time a day at ``ms_per_step`` and the integrator's step size (NaN where it
+    has none).
     """
 
     name: str
@@ -47,6 +55,7 @@ class BenchmarkRow:
     energy_rms: float
     ratio_per_evaluation: float = float("nan")
     host_syncs_per_step: float = 0.0
+    ns_per_day: float = float("nan")
 
 
 #: Integrator names (:mod:`openmm_alphaprk.runs.integrator_names`) of the core benchmark; the first is
@@ -71,6 +80,40 @@ def all_integrators(timestep: float) -> dict[str, Callable[[], mm.Integrator]]:
 
 #: Integrator sets of ``--integrators``.
 INTEGRATOR_SETS = {"core": cost_benchmark_integrators, "all": all_integrators}
+#: The names of each set of ``--integrators``.
+INTEGRATOR_SET_NAMES = {"core": CORE, "all": ALL}
+
+
+def integrator_names(choices: Sequence[str]) -> list[str]:
+    """Return the integrator names of ``--integrators``: ``core``, ``all`` or names, in order.
+
+    ``core`` and ``all`` stand for their sets; any other entry is a name of the package's
+    vocabulary (:func:`~openmm_alphaprk.runs.integrator_names.parse_integrator`).
+
+    Raises
+    ------
+    UnknownIntegratorError
+        For a name the vocabulary does not have.
+    ValueError
+        For an integrator given twice (the same label).
+    """
+    names: list[str] = []
+    for choice in choices:
+        for name in INTEGRATOR_SET_NAMES.get(choice.strip().lower(), (choice,)):
+            parse_integrator(name)
+            names.append(name)
+    labels = [label(name) for name in names]
+    twice = sorted({text for text in labels if labels.count(text) > 1})
+    if twice:
+        raise ValueError(f"--integrators: {', '.join(twice)} given twice")
+    return names
+
+
+def ns_per_day(ms_per_step: float, timestep_ps: float) -> float:
+    """Return the simulated ns a day at ``ms_per_step`` ms a step of ``timestep_ps`` ps."""
+    if not ms_per_step > 0:
+        return float("nan")
+    return 86400.0 / (ms_per_step / 1e3) * timestep_ps / 1e3
 
 
 def _context(
@@ -186,6 +229,7 @@ def _timed_rows(runs: dict, steps: int, rounds: int, progress: bool) -> list[Ben
     rows = []
     baseline = medians[next(iter(medians))]
     for name, (integrator, _) in runs.items():
+        step = _step_size_ps(integrator)
         evaluations = counted_force_evaluations(integrator)
         timed = steps * rounds
         per_step = (
@@ -195,12 +239,32 @@ def _timed_rows(runs: dict, steps: int, rounds: int, progress: bool) -> list[Ben
         )
         syncs = (_host_syncs(integrator) - syncs_before[name]) / timed
         ms = medians[name]
-        rows.append(BenchmarkRow(name, ms, ms / baseline, per_step, float("nan"), host_syncs_per_step=syncs))
+        rows.append(
+            BenchmarkRow(
+                name,
+                ms,
+                ms / baseline,
+                per_step,
+                float("nan"),
+                host_syncs_per_step=syncs,
+                ns_per_day=float("nan") if step is None else ns_per_day(ms, step),
+            )
+        )
     rattle = medians.get(label("rattle"))
     for row in rows:
         if rattle:
             row.ratio_per_evaluation = row.ms_per_step / row.force_evaluations_per_step / rattle
     return rows
+
+
+def _step_size_ps(integrator: mm.Integrator) -> float | None:
+    """Return the integrator's step size in ps (None where it has none)."""
+    try:
+        step = integrator.getStepSize()
+    except (AttributeError, TypeError, mm.OpenMMException):
+        return None
+    value = step.value_in_unit(unit.picoseconds) if unit.is_quantity(step) else float(step)
+    return value if value > 0 else None
 
 
 def _energy_rms(box: PreparedSystem, integrator: mm.Integrator, context_args: tuple, steps: int) -> float:
@@ -221,6 +285,7 @@ def format_cost_table(rows: Sequence[BenchmarkRow], header: str = "") -> str:
     lines = [header] if header else []
     columns = (
         ("ms/step", 9),
+        ("ns/day", 9),
         ("time ratio", 11),
         ("force evals/step", 17),
         ("per eval vs RATTLE", 19),
@@ -230,7 +295,7 @@ def format_cost_table(rows: Sequence[BenchmarkRow], header: str = "") -> str:
     lines.append(f"{'integrator':<22} " + " ".join(f"{title:>{width}}" for title, width in columns))
     for row in rows:
         lines.append(
-            f"{row.name:<22} {row.ms_per_step:>9.3f} {row.time_ratio:>11.2f} "
+            f"{row.name:<22} {row.ms_per_step:>9.3f} {row.ns_per_day:>9.2f} {row.time_ratio:>11.2f} "
             f"{row.force_evaluations_per_step:>17.2f} {row.ratio_per_evaluation:>19.2f} "
             f"{row.host_syncs_per_step:>11.2f} {row.energy_rms:>17.4f}"
         )
@@ -269,13 +334,33 @@ def platform_properties(args: argparse.Namespace) -> dict[str, str]:
     return {"Precision": args.precision} if args.precision else {}
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Command-line entry point."""
+#: Precision of each platform where ``--precision`` is not given (OpenMM's defaults).
+DEFAULT_PRECISION = {"Reference": "double", "CPU": "single (the CPU platform's)"}
+
+
+def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="alphaprk bench cost",
-        description="Time RATTLE and α-RATTLE against VerletIntegrator on a TIP3P water box (PME).",
+        description="Time RATTLE and α-RATTLE against VerletIntegrator (or the first of --integrators), "
+        "from the same start: a TIP3P box built here (--box) or a package system (--system).",
     )
     add_box_arguments(parser)
+    parser.add_argument(
+        "--system",
+        default=None,
+        metavar="NAME",
+        help="time on this system of `alphaprk systems` (e.g. tip3p-3nm, villin, dhfr) instead of a --box: "
+        "its equilibrated state from the package or the systems cache (built the first time); "
+        "--box, --cutoff and --equilibration-steps do not apply to it",
+    )
+    parser.add_argument(
+        "--hydrogen-mass",
+        type=float,
+        default=None,
+        metavar="AMU",
+        help="hydrogen mass repartitioning (e.g. 3 for a 4 fs step): hydrogens bonded to a heavy atom get "
+        "this mass, taken from that atom (water's are left alone); applied to the equilibrated start",
+    )
     parser.add_argument(
         "--steps", type=int, default=100, help="timed steps per integrator per round (default 100)"
     )
@@ -291,44 +376,96 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     parser.add_argument(
         "--integrators",
-        choices=sorted(INTEGRATOR_SETS),
-        default="core",
-        help="core: Verlet, RATTLE, RATTLE + rescaling, α = 0, 1/6, 1/2; all: also α-RATTLE-4, RATTLE-4 + "
-        "rescaling, α-RATTLE-6 and the energy modes",
+        nargs="+",
+        default=["core"],
+        metavar="NAME",
+        help="core (default): Verlet, RATTLE, RATTLE + rescaling, α = 0, 1/6, 1/2; all: also α-RATTLE-4, "
+        "RATTLE-4 + rescaling, α-RATTLE-6 and the energy modes; or integrator names, e.g. verlet rattle "
+        "rattle+rescale alpha4=0 rattle4+rescale (`alphaprk run --help` lists them; core and all may be "
+        "among them); the first is the baseline of the time ratios",
     )
     parser.add_argument("--json", help="also write the rows to this JSON file")
+    return parser
+
+
+def _start(args: argparse.Namespace) -> tuple[PreparedSystem, str]:
+    """Return the start (the system's, or a TIP3P box built here) and its description for the header."""
+    if args.system is None:
+        print(f"building a {args.box} nm TIP3P box ...", file=sys.stderr, flush=True)
+        box = build_water_box(
+            args.box,
+            cutoff=args.cutoff,
+            equilibration_steps=args.equilibration_steps,
+            platform=build_platform(args),
+        )
+        description = f"TIP3P box {args.box} nm, PME cutoff {args.cutoff} nm"
+    else:
+        box = prepare_system(args.system, progress=True)
+        description = f"system {box.name} ({box.definition.description or 'see alphaprk systems'})"
+    # a copy of the System (the shipped one may be shared), with the start's box as its default
+    system = mm.XmlSerializer.clone(box.system)
+    if system.usesPeriodicBoundaryConditions():
+        system.setDefaultPeriodicBoxVectors(*box.state.getPeriodicBoxVectors())
+    if args.hydrogen_mass is not None:
+        for change in repartition_hydrogen_mass(system, args.hydrogen_mass, box.topology):
+            print(f"{box.name}: {change}", file=sys.stderr, flush=True)
+        description += f", hydrogen mass {args.hydrogen_mass:g} amu (repartitioned)"
+    return dataclasses.replace(box, system=system), description
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Command-line entry point."""
+    parser = _parser()
     args = parser.parse_args(argv)
     if args.box <= 0 or args.timestep <= 0 or args.steps <= 0 or args.rounds <= 0:
         parser.error("--box, --timestep, --steps and --rounds must be positive")
-    print(f"building a {args.box} nm TIP3P box ...", file=sys.stderr, flush=True)
-    box = build_water_box(
-        args.box,
-        cutoff=args.cutoff,
-        equilibration_steps=args.equilibration_steps,
-        platform=build_platform(args),
-    )
+    if args.hydrogen_mass is not None and not 1.0 <= args.hydrogen_mass <= 4.0:
+        parser.error(
+            f"--hydrogen-mass {args.hydrogen_mass:g} amu is outside 1-4 amu (3 or 4 for a 4 fs step)"
+        )
+    if args.system is not None and args.system not in list_systems() and not args.system.endswith(".toml"):
+        parser.error(f"--system: unknown system {args.system!r}; choose from {', '.join(list_systems())}")
+    try:
+        names = integrator_names(args.integrators)
+    except (UnknownIntegratorError, ValueError) as error:
+        parser.error(str(error))
+    try:
+        box, description = _start(args)
+    except DefinitionError as error:
+        parser.error(str(error))
     timestep = args.timestep / 1000.0
     rows = run_benchmark(
         box,
-        INTEGRATOR_SETS[args.integrators](timestep),
+        cost_benchmark_integrators(timestep, names),
         platform=args.platform,
         steps=args.steps,
         rounds=args.rounds,
         energy_steps=args.energy_steps,
         properties=platform_properties(args),
     )
-    precision = f" ({args.precision} precision)" if args.precision else ""
+    precision = args.precision or DEFAULT_PRECISION.get(args.platform, "single (the platform's default)")
     header = (
-        f"TIP3P box {args.box} nm, {box.n_atoms} atoms, PME cutoff {args.cutoff} nm, {args.timestep} fs, "
-        f"platform {args.platform}{precision}; time ratio against {rows[0].name}; "
+        f"{description}, {box.n_atoms} atoms, {args.timestep} fs, platform {args.platform}, "
+        f"precision {precision}; time ratio against {rows[0].name}; ns/day from ms/step and the step; "
         f"per eval: ms/step per force evaluation against RATTLE's; median of {args.rounds} rounds "
         f"x {args.steps} steps; RMS(H-E0) over {args.energy_steps} steps (VerletIntegrator's kinetic "
         "energy is its leapfrog estimate)"
     )
     print(format_cost_table(rows, header))
     if args.json:
+        result = {
+            "header": header,
+            "system": box.name if args.system is not None else f"tip3p-box-{args.box:g}nm",
+            "atoms": box.n_atoms,
+            "platform": args.platform,
+            "precision": precision,
+            "timestep_fs": args.timestep,
+            "hydrogen_mass_amu": args.hydrogen_mass,
+            "integrators": names,
+            "rows": [asdict(row) for row in rows],
+        }
         with open(args.json, "w", encoding="utf-8") as handle:
-            json.dump({"header": header, "rows": [asdict(row) for row in rows]}, handle, indent=2)
+            json.dump(result, handle, indent=2)
     return 0
 
 
