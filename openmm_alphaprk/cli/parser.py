@@ -24,6 +24,7 @@ BENCHMARKS = {
     "cost": "openmm_alphaprk.benchmarks.cost",
     "energy": "openmm_alphaprk.benchmarks.energy",
     "accuracy": "openmm_alphaprk.benchmarks.accuracy",
+    "long": "openmm_alphaprk.benchmarks.long",
 }
 
 
@@ -232,14 +233,18 @@ def _add_bench_parser(sub) -> None:
     bench = sub.add_parser(
         "bench",
         help="benchmarks against RATTLE: `bench cost` (time per step), `bench energy` (H - E_ref), "
-        "`bench accuracy` (trajectory error against a small-step reference)",
+        "`bench accuracy` (trajectory error against a small-step reference), `bench long` (long NVE runs: "
+        "drift, windowed RMS, ns/day)",
         description=(
             "cost: time per step and per force evaluation of each integrator against RattleIntegrator, "
             "interleaved rounds on one water box. energy: H - E_ref of the energy modes against RATTLE from "
             "the same start, at the same step and at equal cost; --system tip3p-3nm villin runs the "
             "package's systems in one run. accuracy: position and velocity errors against RATTLE at h/64 "
             "after several horizons, with RATTLE and RATTLE + rescaling at equal force evaluations and "
-            "RATTLE at equal wall time. `alphaprk bench NAME --help` lists each one's options."
+            "RATTLE at equal wall time. long: long NVE runs of every row from one start (drift per ns per "
+            "DOF with block standard errors, RMS |H - E_ref| per window, ns/day against VerletIntegrator), "
+            "written as they go and resumed by the same command. `alphaprk bench NAME --help` lists each "
+            "one's options."
         ),
     )
     bench.add_argument("benchmark", choices=BENCHMARKS, help="which benchmark")

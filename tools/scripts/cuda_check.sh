@@ -1,41 +1,105 @@
 #!/usr/bin/env bash
-# The GPU checks behind docs/platforms.md, docs/compositions.md and docs/benchmarks.md, in one
-# short run on a machine with CUDA (OpenMM and its CUDA plugin importable, e.g. from carried wheels):
-#   1. the common-platform and rescaling tests on CUDA, mixed and single precision, beside
-#   2. long NVE runs of the default programs (energy benchmark, CUDA mixed: tip3p-3nm 20 ps,
-#      villin 10 ps; RATTLE, RATTLE-4 + rescaling, the α-RATTLE-4 energy mode, RATTLE at h/k);
-#   3. then alone on the GPU, the cost benchmark (every program) on 2.7k-, 21k- and 72k-atom
-#      TIP3P boxes in mixed precision and on the 21k box in single precision.
-# Usage: OUT=folder tools/scripts/cuda_check.sh   (eight files: log.txt, cuda_tests.log,
-# energy_tip3p-3nm.json, energy_villin.json, cost_3.json, cost_6.json, cost_9.json, cost_6_single.json)
+# The GPU checks behind docs/long_runs.md, docs/platforms.md and docs/benchmarks.md, in one run
+# of at most 9 minutes on a machine with CUDA (OpenMM and its CUDA plugin importable, e.g. from
+# carried wheels; the package importable from the checkout):
+#   A. at the same time: the common-platform and rescaling tests on CUDA (mixed and single), and
+#      `alphaprk bench long` on a water box in mixed and single precision, one process per row
+#      (the one-evaluation rows LONG_TIME ps, the others MULTI_TIME ps; each process stopped with
+#      SIGINT after LONG_LIMIT s, which keeps what it ran), then each precision's report;
+#   B. then alone on the GPU: `alphaprk bench cost` on each of COST_SYSTEMS (mixed), on DHFR with
+#      the package's settings at 2 fs, and OpenMM's DHFR benchmark system as OpenMM builds it at
+#      4 fs (tools/scripts/dhfr_openmm_settings.py), for ns/day beside OpenMM's published figure.
+# Usage: OUT=folder tools/scripts/cuda_check.sh
+# Files: $OUT/log.txt (everything printed) and $OUT/results.tar.gz (test log, long-run folders
+# without checkpoints and trajectories, cost JSONs). Knobs (environment): PLATFORM (CUDA),
+# PRECISIONS ("mixed single"), LONG_SYSTEM (tip3p-3nm), LONG_TIME (1000), MULTI_TIME (100),
+# LONG_LIMIT (270), TEST_LIMIT (280), COST_SYSTEMS, COST_STEPS (200), COST_ROUNDS (3), DHFR (1),
+# TESTS (the test files; "none": no tests).
 set -uo pipefail
 OUT=${OUT:-cuda-check}
 mkdir -p "$OUT"
+OUT=$(cd "$OUT" && pwd)
+WORK=${WORK:-$(mktemp -d)}
 export PYTHONUNBUFFERED=1
-BENCH='import sys, importlib; sys.exit(importlib.import_module("openmm_alphaprk.benchmarks." + sys.argv[1]).main(sys.argv[2:]))'
 PLATFORM=${PLATFORM:-CUDA}
+PRECISIONS=${PRECISIONS:-mixed single}
+LONG_SYSTEM=${LONG_SYSTEM:-tip3p-3nm}
+LONG_TIME=${LONG_TIME:-1000}
+MULTI_TIME=${MULTI_TIME:-100}
+LONG_LIMIT=${LONG_LIMIT:-270}
+TEST_LIMIT=${TEST_LIMIT:-280}
+COST_SYSTEMS=${COST_SYSTEMS:-tip3p-3nm .devcarry/tip3p-6nm.toml .devcarry/tip3p-9nm.toml}
+COST_STEPS=${COST_STEPS:-200}
+COST_ROUNDS=${COST_ROUNDS:-3}
+DHFR=${DHFR:-1}
+TESTS=${TESTS:-tests/test_common_platform.py tests/test_rescale.py}
+ALPHAPRK="python3 -m openmm_alphaprk"
+# the rows of bench long, one process each; rescaling every 10 steps where the package has it
+ROWS="verlet rattle rattle+rescale alpha4=0 rattle4+rescale energy4"
+if python3 -c "from openmm_alphaprk.runs.integrator_names import parse_integrator as p; p('rattle+rescale@10')" 2>/dev/null; then
+    ROWS="$ROWS rattle+rescale@10"
+    INTERVAL_ROWS="rattle+rescale@10 rattle4+rescale@10"
+else
+    INTERVAL_ROWS=""
+fi
 {
-nvidia-smi --query-gpu=name,driver_version --format=csv,noheader
+nvidia-smi --query-gpu=name,driver_version --format=csv,noheader 2>/dev/null || echo "no nvidia-smi"
 python3 -c "import openmm; print('OpenMM', openmm.__version__)"
 start=$SECONDS
-ALPHAPRK_TEST_PLATFORMS=$PLATFORM:mixed,$PLATFORM:single ALPHAPRK_REQUIRE_PLATFORMS=1 \
-    timeout 240 python3 -m pytest -q -p no:cacheprovider --durations=5 \
-    tests/test_common_platform.py tests/test_rescale.py >"$OUT/cuda_tests.log" 2>&1 &
-tests=$!
-(
-    timeout 130 python3 -c "$BENCH" energy --platform "$PLATFORM" --precision mixed --system tip3p-3nm --time 20 --fixed-alpha \
-        --only rattle4+rescale energy4 --json "$OUT/energy_tip3p-3nm.json" 2>&1 | grep -v "it/s\]" | tail -12
-    timeout 120 python3 -c "$BENCH" energy --platform "$PLATFORM" --precision mixed --system villin --time 10 --fixed-alpha \
-        --only rattle4+rescale energy4 --json "$OUT/energy_villin.json" 2>&1 | grep -v "it/s\]" | tail -12
-)
-wait $tests
-echo "tests (exit $?, $((SECONDS - start)) s):"; tail -12 "$OUT/cuda_tests.log"
-for run in "3 mixed 50" "6 mixed 70" "9 mixed 100" "6 single 70"; do
-    set -- $run
-    name=cost_$1$([ "$2" = single ] && echo _single)
-    echo "== cost, box $1 nm, $2 ($((SECONDS - start)) s)"
-    timeout "$3" python3 -c "$BENCH" cost --platform "$PLATFORM" --precision "$2" --box "$1" --steps 100 --rounds 3 --energy-steps 10 \
-        --equilibration-steps 100 --integrators all --json "$OUT/$name.json" 2>&1 | grep -v "^round\|^energy pass" | tail -14
+echo "== A: tests and long runs ($PLATFORM; rows: $ROWS)"
+tests=""
+if [ "$TESTS" != none ]; then
+    test_platforms=$(for p in $PRECISIONS; do printf '%s:%s,' "$PLATFORM" "$p"; done)
+    ALPHAPRK_TEST_PLATFORMS=${test_platforms%,} ALPHAPRK_REQUIRE_PLATFORMS=1 \
+        timeout -s INT "$TEST_LIMIT" python3 -m pytest -q -p no:cacheprovider -n 4 --durations=5 \
+        $TESTS >"$WORK/tests.log" 2>&1 &
+    tests=$!
+fi
+pids=""
+for precision in $PRECISIONS; do
+    for row in $ROWS; do
+        timeout -s INT "$LONG_LIMIT" $ALPHAPRK bench long --system "$LONG_SYSTEM" --platform "$PLATFORM" \
+            --precision "$precision" --time "$LONG_TIME" --time-multi "$MULTI_TIME" --integrators "$row" \
+            --output "$WORK/long_$precision" --no-progress >"$WORK/long_${precision}_${row//[^a-z0-9]/_}.log" 2>&1 &
+        pids="$pids $!"
+    done
 done
+wait $pids
+echo "long runs stopped or done after $((SECONDS - start)) s"
+for precision in $PRECISIONS; do
+    echo "-- bench long, $PLATFORM $precision (report of what ran)"
+    $ALPHAPRK bench long --system "$LONG_SYSTEM" --platform "$PLATFORM" --precision "$precision" \
+        --time "$LONG_TIME" --time-multi "$MULTI_TIME" --integrators $ROWS --output "$WORK/long_$precision" \
+        --report --no-progress 2>&1 | grep -v "^ *$"
+done
+if [ -n "$tests" ]; then
+    wait "$tests"
+    echo "tests (exit $?, $((SECONDS - start)) s):"
+    tail -15 "$WORK/tests.log"
+fi
+echo "== B: cost, alone on the GPU ($((SECONDS - start)) s)"
+i=0
+for system in $COST_SYSTEMS; do
+    i=$((i + 1))
+    echo "-- cost, $system, mixed ($((SECONDS - start)) s)"
+    timeout 80 $ALPHAPRK bench cost --system "$system" --platform "$PLATFORM" --precision mixed \
+        --steps "$COST_STEPS" --rounds "$COST_ROUNDS" --energy-steps 10 \
+        --integrators verlet rattle rattle+rescale $INTERVAL_ROWS alpha4=0 rattle4+rescale energy4 \
+        --json "$WORK/cost_${i}_$(basename "$system" .toml).json" 2>&1 | grep -v "^round\|^energy pass\|unsupported OpenCL"
+done
+if [ "$DHFR" = 1 ]; then
+    echo "-- cost, dhfr (package settings), 2 fs, mixed ($((SECONDS - start)) s)"
+    timeout 90 $ALPHAPRK bench cost --system dhfr --platform "$PLATFORM" --precision mixed \
+        --steps "$COST_STEPS" --rounds "$COST_ROUNDS" --energy-steps 10 \
+        --integrators verlet rattle rattle+rescale $INTERVAL_ROWS alpha4=0 rattle4+rescale \
+        --json "$WORK/cost_dhfr_2fs.json" 2>&1 | grep -v "^round\|^energy pass\|unsupported OpenCL"
+    echo "-- DHFR as OpenMM's benchmark builds it, 4 fs, mixed ($((SECONDS - start)) s)"
+    timeout 60 python3 tools/scripts/dhfr_openmm_settings.py --platform "$PLATFORM" --precision mixed \
+        --integrators rattle rattle+rescale ${INTERVAL_ROWS%% *} rattle4+rescale --steps 500 --rounds 3 \
+        --json "$WORK/dhfr_openmm_settings.json" 2>&1
+fi
 echo "done in $((SECONDS - start)) s"
 } 2>&1 | tee "$OUT/log.txt"
+cp "$OUT/log.txt" "$WORK/log.txt"
+tar -C "$WORK" --exclude='*.chk' --exclude='*.chk.previous' --exclude='*.dcd' --exclude='system.xml' \
+    -czf "$OUT/results.tar.gz" .

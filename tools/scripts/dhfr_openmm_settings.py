@@ -1,0 +1,157 @@
+"""OpenMM's DHFR benchmark system exactly as OpenMM's benchmark script builds it, timed with our integrators.
+
+OpenMM's ``examples/benchmarks/benchmark.py --test pme`` (the figure OpenMM publishes
+for DHFR, 23,558 atoms) builds ``5dfr_solv-cube_equil.pdb`` with Amber99SB + TIP3P,
+PME with a 0.9 nm cutoff and the default Ewald tolerance (5e-4), HBonds constraints,
+hydrogen mass 1.5 amu, and runs ``LangevinMiddleIntegrator`` at 4 fs, constraint
+tolerance 1e-5; it times ``step(n)`` between two ``getState(energy=True)`` calls
+(the device synchronised before and after). This script builds the same system from
+the PDB shipped in the package and times, the same way and interleaved in rounds,
+that integrator, ``VerletIntegrator``, and the package's integrators named on the
+command line, all at the same step and constraint tolerance, and prints ns/day and
+each one's step time against ``LangevinMiddleIntegrator``'s and ``VerletIntegrator``'s.
+The package's integrators run without the ``CMMotionRemover`` (an NVE run removes it;
+OpenMM's benchmark keeps it, as the Langevin and Verlet rows here do).
+
+Example (CUDA)::
+
+    python tools/scripts/dhfr_openmm_settings.py --platform CUDA --precision mixed \
+        --integrators rattle rattle+rescale rattle4+rescale --json dhfr.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import gzip
+import json
+import statistics
+import sys
+import time
+from importlib import resources
+
+import openmm as mm
+import openmm.app as app
+import openmm.unit as unit
+
+from openmm_alphaprk.runs.integrator_names import label, make_integrator
+
+PDB = "5dfr_solv-cube_equil.pdb.gz"
+
+
+def openmm_benchmark_system(hydrogen_mass_amu: float = 1.5) -> tuple[mm.System, list, app.Topology]:
+    """Return OpenMM's ``pme`` benchmark System (HBonds), its positions and topology."""
+    with resources.as_file(resources.files("openmm_alphaprk.systems") / "data" / PDB) as path:
+        with gzip.open(path, "rt") as handle:
+            pdb = app.PDBFile(handle)
+    forcefield = app.ForceField("amber99sb.xml", "tip3p.xml")
+    system = forcefield.createSystem(
+        pdb.topology,
+        nonbondedMethod=app.PME,
+        nonbondedCutoff=0.9 * unit.nanometers,
+        constraints=app.HBonds,
+        hydrogenMass=hydrogen_mass_amu * unit.amu,
+    )
+    return system, pdb.positions, pdb.topology
+
+
+def _without_cm_remover(system: mm.System) -> mm.System:
+    copied = copy.deepcopy(system)
+    for index in reversed(range(copied.getNumForces())):
+        if isinstance(copied.getForce(index), mm.CMMotionRemover):
+            copied.removeForce(index)
+    return copied
+
+
+def _integrators(names: list[str], timestep_ps: float) -> dict[str, tuple[mm.Integrator, bool]]:
+    """Integrators by label, each with whether it runs the System as OpenMM's benchmark has it."""
+    step = timestep_ps * unit.picoseconds
+    rows = {
+        "LangevinMiddleIntegrator": (
+            mm.LangevinMiddleIntegrator(300 * unit.kelvin, 1 / unit.picoseconds, step),
+            True,
+        ),
+        label("verlet"): (mm.VerletIntegrator(step), True),
+    }
+    for name in names:
+        rows[label(name)] = (make_integrator(name, timestep_ps, constraint_tolerance=1e-5), False)
+    for integrator, _ in rows.values():
+        integrator.setConstraintTolerance(1e-5)
+    return rows
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--platform", default="CUDA")
+    parser.add_argument("--precision", default=None, choices=("single", "mixed", "double"))
+    parser.add_argument("--timestep", type=float, default=4.0, help="fs (default 4, OpenMM's)")
+    parser.add_argument("--hydrogen-mass", type=float, default=1.5, help="amu (default 1.5, OpenMM's)")
+    parser.add_argument("--integrators", nargs="*", default=["rattle", "rattle+rescale", "rattle4+rescale"])
+    parser.add_argument("--steps", type=int, default=500, help="steps per row per round (default 500)")
+    parser.add_argument("--rounds", type=int, default=3)
+    parser.add_argument("--json")
+    args = parser.parse_args(argv)
+    started = time.perf_counter()
+    system, positions, _ = openmm_benchmark_system(args.hydrogen_mass)
+    nve_system = _without_cm_remover(system)
+    platform = mm.Platform.getPlatformByName(args.platform)
+    properties = {"Precision": args.precision} if args.precision else {}
+    rows = _integrators(args.integrators, args.timestep / 1000.0)
+    contexts = {}
+    for name, (integrator, as_benchmark) in rows.items():
+        context = mm.Context(system if as_benchmark else nve_system, integrator, platform, properties)
+        context.setPositions(positions)
+        if not contexts:  # OpenMM's benchmark: velocities at 300 K (no minimization for this test)
+            context.setVelocitiesToTemperature(300 * unit.kelvin, 2024)
+            start = context.getState(getPositions=True, getVelocities=True)
+        context.setPositions(start.getPositions())
+        context.setVelocities(start.getVelocities())
+        integrator.step(20)  # kernels compiled, program analysed
+        contexts[name] = context
+    print(
+        f"built {system.getNumParticles()} atoms, contexts ready in {time.perf_counter() - started:.0f} s",
+        file=sys.stderr,
+        flush=True,
+    )
+    times: dict[str, list[float]] = {name: [] for name in rows}
+    for _ in range(args.rounds):
+        for name, (integrator, _) in rows.items():
+            context = contexts[name]
+            context.getState(getEnergy=True)
+            begin = time.perf_counter()
+            integrator.step(args.steps)
+            context.getState(getEnergy=True)
+            times[name].append((time.perf_counter() - begin) / args.steps * 1e3)
+    medians = {name: statistics.median(values) for name, values in times.items()}
+    langevin, verlet = medians["LangevinMiddleIntegrator"], medians[label("verlet")]
+    precision = f" ({args.precision})" if args.precision else ""
+    header = (
+        f"DHFR as OpenMM's benchmark builds it ({system.getNumParticles()} atoms, Amber99SB/TIP3P, "
+        "PME 0.9 nm, "
+        f"Ewald tolerance 5e-4, HBonds, H {args.hydrogen_mass:g} amu), {args.timestep:g} fs, platform "
+        f"{args.platform}{precision}; median of {args.rounds} interleaved rounds x {args.steps} steps, "
+        "each between two getState(energy=True)"
+    )
+    print(header)
+    print(f"{'integrator':<28} {'ms/step':>8} {'ns/day':>8} {'vs Langevin':>11} {'vs Verlet':>9}")
+    result = []
+    for name, ms in medians.items():
+        ns_day = args.timestep * 1e-6 * 86400.0 / (ms * 1e-3)
+        print(f"{name:<28} {ms:>8.3f} {ns_day:>8.0f} {ms / langevin:>11.2f} {ms / verlet:>9.2f}")
+        result.append(
+            {
+                "integrator": name,
+                "ms_per_step": ms,
+                "ns_per_day": ns_day,
+                "ratio_to_langevin_middle": ms / langevin,
+                "ratio_to_verlet": ms / verlet,
+            }
+        )
+    if args.json:
+        with open(args.json, "w", encoding="utf-8") as handle:
+            json.dump({"header": header, "rows": result, "openmm": mm.__version__}, handle, indent=2)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
