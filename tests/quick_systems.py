@@ -52,7 +52,8 @@ class StopAt:
     ``how``: ``"raise"`` raises KeyboardInterrupt after the run's own reports of that
     step (OpenMM calls this reporter last); ``"before"`` raises it before them (it asks
     for wrapped positions, so OpenMM calls it first: the step's output is incomplete);
-    ``"signal"`` sends this process SIGINT, which is what Ctrl-C does.
+    ``"signal"`` sends this process SIGINT, which is what Ctrl-C does; ``"sigterm"`` sends
+    it SIGTERM, which is what ``kill``, ``timeout`` and batch schedulers send.
     """
 
     def __init__(self, step: int, how: str = "raise"):
@@ -67,8 +68,8 @@ class StopAt:
         return {"steps": steps, "periodic": None, "include": []}
 
     def report(self, simulation, state) -> None:
-        if self.how == "signal":
-            os.kill(os.getpid(), signal.SIGINT)
+        if self.how in ("signal", "sigterm"):
+            os.kill(os.getpid(), signal.SIGINT if self.how == "signal" else signal.SIGTERM)
         else:
             raise KeyboardInterrupt
 

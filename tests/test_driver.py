@@ -76,6 +76,8 @@ def test_alpha_zero_gives_rattle_energies(box, tmp_path):
         ("cluster", "rattle", {"velocity_interval": 3, "velocity_seed": 11}, StopAt(13, "signal"), 14),
         # Ctrl-C before the first step-count checkpoint (step 1000) is not lost: it resumes from 14
         ("cluster", "energy", {"checkpoint_interval": 1000}, StopAt(13, "signal"), 14),
+        # SIGTERM (kill, timeout, a batch scheduler's time limit) is deferred the same way
+        ("cluster", "rattle", {}, StopAt(13, "sigterm"), 14),
         # incomplete output and no checkpoint yet: the run starts again from step 0
         ("cluster", "rattle", {}, StopAt(6, "before"), None),
     ],

@@ -173,30 +173,38 @@ class TrackedVelocityDCDReporter(Tracked, VelocityDCDReporter):
 
 @contextlib.contextmanager
 def deferred_interrupt() -> Iterator[Callable[[], bool]]:
-    """Within the block, a first Ctrl-C (SIGINT) only sets a flag; yield the function that reads it.
+    """Within the block, a first Ctrl-C (SIGINT) or SIGTERM only sets a flag; yield what reads the flag.
 
     The caller checks the flag between steps, where the state and the files agree, so
-    the interruption can be checkpointed. A second Ctrl-C interrupts at once (the
-    previous handler is back). Outside the main thread (dask workers), or where SIGINT
-    is ignored, nothing changes and the flag stays unset.
+    the interruption can be checkpointed. A second signal of the same kind acts at once
+    (the previous handler is back). SIGTERM is what ``kill``, ``timeout`` and batch
+    schedulers send at a run's time limit; it is deferred only where its handler is
+    the default one. Outside the main thread (dask workers) nothing changes and the
+    flag stays unset; a signal that is ignored stays ignored (a script's background
+    job starts with SIGINT ignored: SIGTERM still stops it with its files complete).
     """
     received = threading.Event()
-    in_main = threading.current_thread() is threading.main_thread()
-    previous = signal.getsignal(signal.SIGINT) if in_main else None
-    if not in_main or previous is signal.SIG_IGN:
+    if threading.current_thread() is not threading.main_thread():
         yield received.is_set
         return
-    previous = signal.default_int_handler if previous is None else previous
+    previous = {}
+    on_interrupt = signal.getsignal(signal.SIGINT)
+    if on_interrupt is not signal.SIG_IGN:
+        previous[signal.SIGINT] = signal.default_int_handler if on_interrupt is None else on_interrupt
+    if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
+        previous[signal.SIGTERM] = signal.SIG_DFL
 
     def handler(signum, frame) -> None:
         received.set()
-        signal.signal(signal.SIGINT, previous)
+        signal.signal(signum, previous[signum])
 
-    signal.signal(signal.SIGINT, handler)
+    for signum in previous:
+        signal.signal(signum, handler)
     try:
         yield received.is_set
     finally:
-        signal.signal(signal.SIGINT, previous)
+        for signum, handler_before in previous.items():
+            signal.signal(signum, handler_before)
 
 
 def interrupted(

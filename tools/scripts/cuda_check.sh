@@ -5,7 +5,7 @@
 #   A. at the same time: the common-platform and rescaling tests on CUDA (mixed and single), and
 #      `alphaprk bench long` on a water box in mixed and single precision, one process per row
 #      (the one-evaluation rows LONG_TIME ps, the others MULTI_TIME ps; each process stopped with
-#      SIGINT after LONG_LIMIT s, which keeps what it ran), then each precision's report;
+#      SIGTERM after LONG_LIMIT s, which keeps what it ran), then each precision's report;
 #   B. then alone on the GPU: `alphaprk bench cost` on each of COST_SYSTEMS (mixed), on DHFR with
 #      the package's settings at 2 fs, and OpenMM's DHFR benchmark system as OpenMM builds it at
 #      4 fs (tools/scripts/dhfr_openmm_settings.py), for ns/day beside OpenMM's published figure.
@@ -51,14 +51,14 @@ tests=""
 if [ "$TESTS" != none ]; then
     test_platforms=$(for p in $PRECISIONS; do printf '%s:%s,' "$PLATFORM" "$p"; done)
     ALPHAPRK_TEST_PLATFORMS=${test_platforms%,} ALPHAPRK_REQUIRE_PLATFORMS=1 \
-        timeout -s INT "$TEST_LIMIT" python3 -m pytest -q -p no:cacheprovider -n 4 --durations=5 \
+        timeout "$TEST_LIMIT" python3 -m pytest -q -p no:cacheprovider -n 4 --durations=5 \
         $TESTS >"$WORK/tests.log" 2>&1 &
     tests=$!
 fi
 pids=""
 for precision in $PRECISIONS; do
     for row in $ROWS; do
-        timeout -s INT "$LONG_LIMIT" $ALPHAPRK bench long --system "$LONG_SYSTEM" --platform "$PLATFORM" \
+        timeout "$LONG_LIMIT" $ALPHAPRK bench long --system "$LONG_SYSTEM" --platform "$PLATFORM" \
             --precision "$precision" --time "$LONG_TIME" --time-multi "$MULTI_TIME" --integrators "$row" \
             --output "$WORK/long_$precision" --no-progress >"$WORK/long_${precision}_${row//[^a-z0-9]/_}.log" 2>&1 &
         pids="$pids $!"
