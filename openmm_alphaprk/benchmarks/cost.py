@@ -134,7 +134,7 @@ def _context(
 
 
 def interleaved_timing(
-    integrators: dict[str, tuple[mm.Integrator, int]],
+    integrators: dict[str, tuple],
     steps: int,
     rounds: int,
     progress: bool = False,
@@ -143,16 +143,23 @@ def interleaved_timing(
 
     Each round steps every integrator in turn, so that any load on the machine falls on
     all of them alike. ``integrators`` maps a name to (integrator, integrator steps per
-    benchmark step); each round takes ``steps`` benchmark steps of each. With no rounds
-    the result is empty.
+    benchmark step) or (integrator, steps per benchmark step, context); each round takes
+    ``steps`` benchmark steps of each. Where the context is given, each timed stretch
+    lies between two ``getState(getEnergy=True)`` calls, which wait for the device (as
+    OpenMM's own benchmark script times it): on a GPU ``step()`` returns before the
+    kernels it queued have run. With no rounds the result is empty.
     """
     times: dict[str, list[float]] = {name: [] for name in integrators}
     for round_index in range(rounds):
-        for name, (integrator, substeps) in integrators.items():
+        for name, (integrator, substeps, *context) in integrators.items():
             if progress:
                 print(f"round {round_index + 1}/{rounds}: {name}", file=sys.stderr, flush=True)
+            if context:
+                context[0].getState(getEnergy=True)
             start = time.perf_counter()
             integrator.step(steps * substeps)
+            if context:
+                context[0].getState(getEnergy=True)
             times[name].append((time.perf_counter() - start) / steps * 1e3)
     return {name: statistics.median(values) for name, values in times.items() if values}
 
@@ -224,7 +231,10 @@ def _timed_rows(runs: dict, steps: int, rounds: int, progress: bool) -> list[Ben
     }
     syncs_before = {name: _host_syncs(integrator) for name, (integrator, _) in runs.items()}
     medians = interleaved_timing(
-        {name: (integrator, 1) for name, (integrator, _) in runs.items()}, steps, rounds, progress
+        {name: (integrator, 1, context) for name, (integrator, context) in runs.items()},
+        steps,
+        rounds,
+        progress,
     )
     rows = []
     baseline = medians[next(iter(medians))]

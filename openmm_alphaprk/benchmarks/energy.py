@@ -236,7 +236,11 @@ def _run_rows(box: PreparedSystem, integrators: dict, equal_cost: bool, run: dic
 def _add_timing(rows: list[EnergyRow], runs: dict, steps: int, rounds: int) -> None:
     """Fill ms/step and the time ratio to the first row from interleaved rounds (no energy read-out)."""
     medians = interleaved_timing(
-        {row.name: (runs[row.name][0], runs[row.name][2]) for row in rows if row.blew_up_at_step is None},
+        {
+            row.name: (runs[row.name][0], runs[row.name][2], runs[row.name][1])
+            for row in rows
+            if row.blew_up_at_step is None
+        },
         steps,
         rounds,
     )
