@@ -33,6 +33,9 @@ INTEGRATORS = {
     "rattle": lambda: RattleIntegrator(H),
     "rattle+rescale": lambda: RattleRescaleIntegrator(H),
     "rattle4+rescale": lambda: RattleRescaleIntegrator(H, order=4),
+    # rescaled at steps 2 and 4 of the five: both blocks, the plain step's and the rescaling's
+    "rattle+rescale@2": lambda: RattleRescaleIntegrator(H, rescale_interval=2),
+    "rattle4+rescale@2": lambda: RattleRescaleIntegrator(H, order=4, rescale_interval=2),
     "alpha=0": lambda: AlphaRattleIntegrator(H, 0.0),
     "alpha=1/6": lambda: AlphaRattleIntegrator(H, 1 / 6),
     "alpha=1/2": lambda: AlphaRattleIntegrator(H, 0.5),
@@ -295,6 +298,32 @@ def test_rescaling_keeps_its_reference_energy_and_carried_momentum_across_reorde
     actual = (masses[:, None] * velocities_of(context)).sum(axis=0)
     carried = [integrator.getGlobalVariableByName(f"momentum_{axis}") for axis in "xyz"]
     assert np.linalg.norm(actual - carried) < 0.01
+    context.setVelocities(1.1 * velocities_of(context))  # a change the user makes is still seen
+    integrator.step(1)
+    assert integrator.rescale_totals()["reference_resets"] == 2
+
+
+@pytest.mark.parametrize("spec", with_precision("mixed"))
+def test_rescaling_every_tenth_step_keeps_its_reference_energy_across_reordering(water_box, spec):
+    """N = 10: calls of 5 steps end at plain steps and at rescaling steps; the run crosses a reorder.
+
+    A call's first step compares its start with the last step's end; after a plain step the
+    energy that step ended with was not read, and the reorder must still not retake E_ref. H
+    at the rescaling steps is held as with N = 1 (bounds of the test above).
+    """
+    run = REORDERING_RUNS[2]
+    integrator = RattleRescaleIntegrator(H, rescale_interval=10)
+    context = _context(water_box.system, integrator, spec, water_box.positions, water_box.velocities)
+    integrator.check_context(context)
+    e_ref = total_energy(context)
+    _bring_the_reorder_forward(context, run.uploads)
+    residuals = _residuals(context, integrator, run.steps, e_ref, steps_per_sample=5)
+    assert _steps_since_reorder(context) == (run.steps, run.steps - run.reorder_step)
+    assert integrator.rescale_totals()["reference_resets"] == 1
+    assert integrator.rescalings == run.steps // 10
+    held, between = residuals[1::2], residuals[::2]
+    assert abs(held.mean()) < 0.005 and held.std() < 5e-9, held
+    assert np.abs(between - held.mean()).max() > 0.01  # the plain steps are RATTLE's (the check can fail)
     context.setVelocities(1.1 * velocities_of(context))  # a change the user makes is still seen
     integrator.step(1)
     assert integrator.rescale_totals()["reference_resets"] == 2

@@ -15,6 +15,7 @@ from openmm_alphaprk import (
     VelocityRescaleError,
     restore_integrator,
 )
+from openmm_alphaprk._units import InputError
 from openmm_alphaprk.observables import energy_residuals, masses, momenta, rms
 from openmm_alphaprk.systems import prepare_system
 
@@ -303,17 +304,24 @@ def test_a_composition_is_named_by_order_or_name():
 
 
 # ---------------------------------------------------------------- the cost: sums per step
-def _per_step_sums(integrator: RattleRescaleIntegrator) -> list[str]:
-    """The sums of the program outside the blocks that run once per call or when the state was set."""
+def _per_step_sums(integrator: RattleRescaleIntegrator, once_per_interval: bool = False) -> list[str]:
+    """The sums of the program outside the blocks that run once per call or when the state was set.
+
+    With ``rescale_interval`` > 1 the rescaling block (every N-th step) is left out too, or,
+    with ``once_per_interval``, only the sums inside it are given.
+    """
     once = ("check_system", "state_check", "state_moved", "rotation > 0.5")
-    sums, open_blocks = [], []
+    interval = "rescale_count > rescale_interval"
+    sums, open_blocks, in_interval = [], [], []
     for line in integrator.program_listing().splitlines():
         text = line.split(maxsplit=1)[1] if line.strip() else ""
         if text.startswith(("if (", "while (")):
             open_blocks.append(any(name in text for name in once))
+            in_interval.append(interval in text)
         elif text == "end":
             open_blocks.pop()
-        elif "= sum(" in text and not any(open_blocks):
+            in_interval.pop()
+        elif "= sum(" in text and not any(open_blocks) and any(in_interval) == once_per_interval:
             sums.append(text)
     return sums
 
@@ -414,3 +422,201 @@ def test_a_step_too_large_for_the_system_is_named_when_no_factor_exists():
     import re
 
     assert float(re.search(r"\(here ([0-9.e+-]+) of it\)", message).group(1)) > 0.5
+
+
+# ---------------------------------------------------------------- rescaling every N-th step
+def _residual_trace(system, integrator, x, v, steps):
+    """H − E_ref (the integrator's) and P, L after every step, one ``step(1)`` call each."""
+    context = _context(system, integrator, x, v)
+    integrator.check_context(context)
+    residuals, linear, angular = [], [], []
+    for _ in range(steps):
+        integrator.step(1)
+        residuals.append(total_energy(context) - _kj(integrator.reference_energy))
+        p, angular_momentum = _invariants(system, context)
+        linear.append(p)
+        angular.append(angular_momentum)
+    return np.array(residuals), np.array(linear), np.array(angular), context
+
+
+@pytest.mark.parametrize("order", [None, 4])
+def test_every_tenth_step_holds_energy_and_the_steps_between_are_rattles(spinning_cluster, order):
+    """N = 10 on the spinning cluster (Reference, 40 steps): H = E_ref at steps 10, 20, 30, 40.
+
+    Between them the steps are RATTLE's (the composition's): from the state after step 20,
+    the integrator without rescaling takes the same 9 steps (positions to 1e-12 nm, H to
+    1e-9 kJ/mol), and H − E_ref there is of RATTLE's size (measured RMS 0.17 kJ/mol for one
+    RATTLE step, at the rescaling steps 4e-13). P and L are kept at every step.
+    """
+    system, x, v = spinning_cluster
+    integrator = RattleRescaleIntegrator(H, order=order, rescale_interval=10)
+    residuals, p, angular, context = _residual_trace(system, integrator, x, v, 40)
+    rescaled = residuals[9::10]
+    between = np.delete(residuals, np.s_[9::10])
+    assert np.abs(rescaled).max() < 1e-9, rescaled
+    assert rms(between) > 1e4 * max(np.abs(rescaled).max(), 1e-12)  # the check can fail
+    assert integrator.rescalings == 4 and integrator.steps_taken == 40
+    assert integrator.getGlobalVariableByName("rescale_count") == 0
+    p0, l0 = _invariants(system, _context(system, mm.VerletIntegrator(H), x, v))
+    assert np.abs(p - p0).max() < 1e-9 * np.linalg.norm(p0)
+    assert np.abs(angular - l0).max() < 1e-9 * np.linalg.norm(l0)
+    # the 9 steps after a rescaling are the unrescaled integrator's steps from that state
+    integrator = RattleRescaleIntegrator(H, order=order, rescale_interval=10)
+    context = _context(system, integrator, x, v)
+    integrator.check_context(context)
+    integrator.step(20)
+    start = context.getState(getPositions=True, getVelocities=True)
+    integrator.step(9)
+    composed = RattleIntegrator(H) if order is None else AlphaRattleIntegrator(H, 0.0, order=order)
+    plain = _context(system, composed, start.getPositions(), start.getVelocities())
+    composed.step(9)
+    assert np.abs(positions_of(context) - positions_of(plain)).max() < 1e-12
+    assert abs(total_energy(context) - total_energy(plain)) < 1e-9
+
+
+def test_the_interval_runs_on_across_calls_checkpoints_and_restarts_at_a_new_reference(spinning_cluster):
+    """``step(7)`` then ``step(3)`` rescales after the 10th step; a checkpoint keeps the count; setState restarts it."""
+    system, x, v = spinning_cluster
+    integrator = RattleRescaleIntegrator(H, rescale_interval=10)
+    context = _context(system, integrator, x, v)
+    integrator.check_context(context)
+    integrator.step(7)
+    assert (integrator.rescalings, integrator.getGlobalVariableByName("rescale_count")) == (0, 7)
+    checkpoint = context.createCheckpoint()
+    integrator.step(3)
+    assert integrator.rescalings == 1
+    assert abs(total_energy(context) - _kj(integrator.reference_energy)) < 1e-9
+    after_ten = positions_of(context)
+    context.loadCheckpoint(checkpoint)  # the count (7) and the rest of the program's state come back
+    assert integrator.getGlobalVariableByName("rescale_count") == 7
+    integrator.step(3)
+    assert np.abs(positions_of(context) - after_ten).max() < 1e-12
+    assert abs(total_energy(context) - _kj(integrator.reference_energy)) < 1e-9
+    integrator.step(4)  # count 4 when the user sets a new state: E_ref retaken, the count restarts
+    context.setVelocities(1.1 * velocities_of(context))
+    resets = integrator.rescale_totals()["reference_resets"]
+    integrator.step(9)
+    assert integrator.rescale_totals()["reference_resets"] == resets + 1
+    assert integrator.getGlobalVariableByName("rescale_count") == 9  # not rescaled at the old count's 10th
+    integrator.step(1)
+    assert integrator.getGlobalVariableByName("rescale_count") == 0
+    assert abs(total_energy(context) - _kj(integrator.reference_energy)) < 1e-9
+
+
+@pytest.mark.parametrize("order", [None, 4])
+def test_a_periodic_box_sums_the_kinetic_energy_once_per_interval(order):
+    """N = 10 in a periodic box: K's sum and the energy read sit in the rescaling block alone.
+
+    Counted in the listing (the per-step sums of N = 1 are inside the block that runs at
+    every 10th step) and in a run: 100 steps in one call take 10 sums of K and the call's
+    one comparison of its start with the last step's end.
+    """
+    integrator = RattleRescaleIntegrator(H, order=order, rescale_interval=10)
+    assert _per_step_sums(integrator) == []
+    assert [text.split(" =")[0] for text in _per_step_sums(integrator, once_per_interval=True)] == [
+        "kinetic_energy"
+    ]
+    listing = integrator.program_listing()
+    interval_block = listing.split("if (rescale_count > rescale_interval - 0.5):")[1]
+    assert (
+        "= energy" in interval_block
+        and "= energy"
+        not in listing.split("rescale_count = rescale_count + 1")[1].split(
+            "if (rescale_count > rescale_interval - 0.5):"
+        )[0]
+    )
+    water = prepare_system("tip3p-2nm")
+    context = mm.Context(water.system, integrator, mm.Platform.getPlatformByName("CPU"))
+    context.setState(water.state)
+    integrator.check_context(context)
+    integrator.step(10)
+    before = integrator.getGlobalVariableByName("host_syncs")
+    integrator.step(100)
+    assert integrator.getGlobalVariableByName("host_syncs") - before == 11
+    assert integrator.rescalings == 11
+
+
+def test_one_force_evaluation_per_step_with_an_interval(water_box):
+    """Counted by OpenMM: at a rescaling step the energy comes with the step's force (CPU platform)."""
+    system, calls = _counting(water_box.system)
+    integrator = RattleRescaleIntegrator(H, rescale_interval=5)
+    context = _context(
+        system, integrator, water_box.positions, water_box.velocities, mm.Platform.getPlatformByName("CPU")
+    )
+    integrator.check_context(context)
+    integrator.step(5)
+    calls[0] = 0
+    integrator.step(20)
+    assert calls[0] == 20 and integrator.rescalings == 5
+    assert abs(total_energy(context) - _kj(integrator.reference_energy)) < 0.01
+
+
+@pytest.mark.parametrize("bad", [0, -3, 2.5, True, "10", None, float("nan")])
+def test_a_rescale_interval_that_is_not_a_positive_integer_is_refused(bad):
+    with pytest.raises(InputError, match=r"rescale_interval must be a positive integer.*rescale_interval=10"):
+        RattleRescaleIntegrator(H, rescale_interval=bad)
+
+
+def test_an_interval_of_one_is_the_program_without_it():
+    assert (
+        RattleRescaleIntegrator(H, rescale_interval=1).program_listing()
+        == RattleRescaleIntegrator(H).program_listing()
+    )
+    assert RattleRescaleIntegrator(H, rescale_interval=10.0).rescale_interval == 10
+    assert RattleRescaleIntegrator(H).rescale_interval == 1
+    restored = restore_integrator(
+        mm.XmlSerializer.deserialize(
+            mm.XmlSerializer.serialize(RattleRescaleIntegrator(H, order=4, rescale_interval=7))
+        )
+    )
+    assert restored.rescale_interval == 7 and restored.composition.name == "suzuki5"
+
+
+@pytest.mark.parametrize(
+    ("name", "order", "composition", "interval", "shown"),
+    [
+        ("rattle+rescale@10", 2, None, 10, "RATTLE + rescaling every 10 steps"),
+        ("rattle4+rescale@100", 4, None, 100, "RATTLE-4 + rescaling every 100 steps"),
+        ("rattle6+rescale@3", 6, None, 3, "RATTLE-6 + rescaling every 3 steps"),
+        (
+            "rattle4+rescale:triple-jump@5",
+            4,
+            "triple-jump",
+            5,
+            "RATTLE-4 (triple-jump) + rescaling every 5 steps",
+        ),
+        ("rattle+rescale@1", 2, None, 1, "RATTLE + rescaling"),
+    ],
+)
+def test_rescaling_intervals_are_names_of_the_vocabulary(name, order, composition, interval, shown):
+    from openmm_alphaprk.runs.integrator_names import (
+        INTEGRATOR_HELP,
+        label,
+        make_integrator,
+        parse_integrator,
+    )
+    from openmm_alphaprk.runs.rundir import folder_name
+
+    spec = parse_integrator(name)
+    assert (spec.kind, spec.order, spec.composition, spec.rescale_interval) == (
+        "rescale",
+        order,
+        composition,
+        interval,
+    )
+    assert label(spec) == shown
+    integrator = make_integrator(spec, 0.002)
+    assert integrator.rescale_interval == interval
+    assert parse_integrator(spec.name) == spec
+    assert "rattle+rescale@<N>" in INTEGRATOR_HELP
+    assert folder_name(spec.name) == spec.name.replace("@", "_").replace(":", "_")
+
+
+@pytest.mark.parametrize(
+    "bad", ["rattle@10", "alpha=0.1@3", "rattle+rescale@0", "rattle+rescale@x", "rattle+rescale@2.5"]
+)
+def test_an_interval_on_a_name_that_cannot_take_it_is_refused(bad):
+    from openmm_alphaprk.runs.integrator_names import UnknownIntegratorError, parse_integrator
+
+    with pytest.raises(UnknownIntegratorError, match="rattle\\+rescale@10"):
+        parse_integrator(bad)

@@ -41,6 +41,7 @@ from __future__ import annotations
 
 import math
 import numbers
+from collections.abc import Callable
 
 import openmm as mm
 import openmm.unit as unit
@@ -292,32 +293,90 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         measured on CUDA, the forces read after it were wrong; the positions after 5 steps
         differed from Reference's by 3.7e-3 nm).
         """
-        interval = self._rescale_interval > 1
-        check = {"on_retake": _INTERVAL_RESTART, "carried_tolerance": _EXCURSION_TOLERANCE} if interval else {}
+        if self._rescale_interval > 1:
+            self._build_interval_program()
+            return
+        self._add_step_start(on_moved=self._add_moved_start)
+        self._add_rattle_step()
+        self._add_rescaling()
+        self._add_end_step()
+
+    def _build_interval_program(self) -> None:
+        """With ``rescale_interval`` N > 1: the RATTLE step in two blocks, plain (no energy) and rescaled.
+
+        OpenMM decides for each read of ``f``, once, whether the force evaluation it causes
+        computes the energy too: it does if any path through the program (taking or
+        skipping every ``if`` block, regardless of its condition) reads ``energy`` before the
+        positions change. A step between rescalings therefore reads its force in a block of
+        its own (the plain RATTLE step, :meth:`_add_plain_step`) from which every path to an
+        energy read crosses a position assignment: the rescaling step's own solve, or the
+        ``x = x`` before the reference check's energy read (:meth:`_add_moved_start_invalidating`).
+        The rescaling step's force read, followed by its energy read, computes both in one
+        evaluation, as for N = 1.
+        """
+        self._add_step_start(
+            on_moved=self._add_moved_start_invalidating,
+            on_retake=_INTERVAL_RESTART,
+            carried_tolerance=_EXCURSION_TOLERANCE,
+        )
+        self.addComputeGlobal("rescale_count", "rescale_count + 1")
+        self._add_plain_step()
+        self.beginIfBlock("rescale_count > rescale_interval - 0.5")
+        self._add_rattle_step()
+        self._add_rescaling()
+        self._add_interval_restart()
+        self.endBlock()
+        self._add_end_step()
+
+    def _add_step_start(self, on_moved: Callable[[], None], **check: object) -> None:
+        """F(x0) copied, then the reference check (and, for a composition, the step's start kept)."""
         if self._composition is None:
             # x0, v0 hold the last step's end (written at the end of the step): the start of
             # this one unless the state was set, which the reference check's block copies
             self.addComputeGlobal("step_force_evaluations", "0")
             self.addComputePerDof("fstart", "f")
-            self._add_reference_check(on_moved=self._add_moved_start, previous=("x0", "v0"), **check)
+            self._add_reference_check(on_moved=on_moved, previous=("x0", "v0"), **check)
         else:  # the stages overwrite x0, v0: the step's start kept for a step without a factor
             self._add_save_step_start(xstep="x", vstep="v", fstart="f")
-            self._add_reference_check(on_moved=self._add_rigid_body_measurement, **check)
-        if interval:
-            self.addComputeGlobal("rescale_count", "rescale_count + 1")
+            moved = self._add_rigid_body_measurement if on_moved == self._add_moved_start else on_moved
+            self._add_reference_check(on_moved=moved, **check)
+
+    def _add_rattle_step(self) -> None:
+        """The RATTLE step from x0, v0 (F(x0) in ``fstart``), or the composition's stages."""
         if self._composition is None:
             self._add_position_solve("0.5*fstart")
             self._add_velocity_update("0.5*f")
         else:
             self._add_leading_substeps(self._composition, last=self._composition.stages)
-        if interval:
-            self._add_plain_step_end()
-            self.beginIfBlock("rescale_count > rescale_interval - 0.5")
-        self._add_rescaling()
-        if interval:
-            self._add_interval_restart()
-            self.endBlock()
-        self._add_end_step()
+
+    def _add_plain_step(self) -> None:
+        """Between rescalings (``rescale_count`` < N): the RATTLE step, then the state it ends in recorded.
+
+        No energy read and no sum: the step costs what RATTLE's (or the composition's) does
+        but for the copy of its end (x0, v0; ``xend``, ``vend`` for a composition).
+        ``end_energy`` keeps the last rescaled step's value (≈ E_ref); the reference check
+        widens its energy test by the excursion for that (:data:`_EXCURSION_TOLERANCE`).
+        """
+        self.beginIfBlock("rescale_count < rescale_interval - 0.5")
+        self._add_rattle_step()
+        into = ("xend", "vend") if self._composition is not None else ("x0", "v0")
+        self.addComputePerDof(into[0], "x")
+        self.addComputePerDof(into[1], "v")
+        self.endBlock()
+
+    def _add_moved_start_invalidating(self) -> None:
+        """Where the state was set: as :meth:`_add_moved_start`, then ``x = x`` before the energy read.
+
+        The assignment changes nothing (on the common platform it comes before the step's
+        constraint steps in program text, so it is stored as a zero displacement) but ends
+        the forces' validity for OpenMM's analysis: the plain step's force evaluation then
+        computes no energy for this read, which evaluates the energy alone, here only.
+        """
+        if self._composition is None:
+            self._add_moved_start()
+        else:
+            self._add_rigid_body_measurement()
+        self.addComputePerDof("x", "x")
 
     def _add_rescaling(self) -> None:
         """The rigid-body motion, the scale factor, the halt without one and the scaled velocities."""
@@ -325,20 +384,6 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         self._add_scale_factor()
         self._add_halt_without_factor()
         self._add_scaling()
-
-    def _add_plain_step_end(self) -> None:
-        """Between rescalings (``rescale_count`` < N): record the state the step ends in, nothing else.
-
-        No energy read and no sum: the step costs what RATTLE's (or the composition's) does
-        but for this per-DOF copy. ``end_energy`` keeps the last rescaled step's value
-        (≈ E_ref); the reference check widens its energy test by the excursion for that
-        (:data:`_EXCURSION_TOLERANCE`).
-        """
-        self.beginIfBlock("rescale_count < rescale_interval - 0.5")
-        into = ("xend", "vend") if self._composition is not None else ("x0", "v0")
-        self.addComputePerDof(into[0], "x")
-        self.addComputePerDof(into[1], "v")
-        self.endBlock()
 
     def _add_interval_restart(self) -> None:
         """After a rescaling: count it, keep the largest |H − E_ref| it removed, start the next interval.

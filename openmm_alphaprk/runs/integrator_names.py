@@ -248,7 +248,11 @@ def parse_integrator(text: str | IntegratorSpec) -> IntegratorSpec:
     if interval is not None:
         canonical = cleaned if interval == 1 else f"{cleaned}@{interval}"
         return IntegratorSpec(
-            entry.kind, text=canonical, order=entry.order, composition=composition_name, rescale_interval=interval
+            entry.kind,
+            text=canonical,
+            order=entry.order,
+            composition=composition_name,
+            rescale_interval=interval,
         )
     if entry is not None and not entry.takes_number and not equals:
         return IntegratorSpec(entry.kind, text=cleaned, order=entry.order, composition=composition_name)

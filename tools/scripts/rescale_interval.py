@@ -126,7 +126,9 @@ def main() -> int:
         "energy": {},
     }
     for box_name in args.boxes:
-        result["step_time"][box_name] = step_times(box_name, args.intervals, args.platform, args.rounds, args.steps)
+        result["step_time"][box_name] = step_times(
+            box_name, args.intervals, args.platform, args.rounds, args.steps
+        )
         print(json.dumps(result["step_time"][box_name]), flush=True)
     if not args.skip_energy:
         box_name = args.boxes[0]
