@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import openmm as mm
+import openmm.app as app
 import openmm.unit as unit
 import pytest
 from quick_systems import QUICK, TIP4PEW_BOX, WATER_BOX, quick_system, stored_water_box
@@ -32,13 +33,22 @@ from openmm_alphaprk.systems import (
 )
 from openmm_alphaprk.systems import cache as cache_module
 from openmm_alphaprk.systems import shipped as shipped_module
-from openmm_alphaprk.systems.build import build_model
+from openmm_alphaprk.systems.build import build_model, create_system, read_pdb
 from openmm_alphaprk.systems.cache import system_key
 from openmm_alphaprk.systems.definitions import DEFINITIONS_DIR
 from openmm_alphaprk.systems.shipped import STATES_DIR, shipped_key, topology_fingerprint
 
 INTEGRATORS = ("rattle", "rattle+rescale", "alpha=1/6", "energy", "verlet")
-EXPECTED = {"tip3p-2nm", "tip3p-3nm", "tip3p-4nm", "spce-3nm", "tip4pew-3nm", "water-cluster", "villin"}
+EXPECTED = {
+    "tip3p-2nm",
+    "tip3p-3nm",
+    "tip3p-4nm",
+    "spce-3nm",
+    "tip4pew-3nm",
+    "water-cluster",
+    "villin",
+    "dhfr",
+}
 #: The main job's system and the small ones the tests use start from shipped states.
 SHIPPED = {"tip3p-3nm", "tip3p-2nm", "water-cluster"}
 
@@ -54,6 +64,48 @@ def test_shipped_definitions_parse():
         definition = load_definition(name)
         assert definition.description
         assert definition.equilibration["seed"] == 2024
+
+
+def test_dhfr_is_openmms_benchmark_system_with_smooth_forces():
+    """OpenMM's DHFR benchmark PDB, shipped gzipped with its licence, makes its 23,558-atom System."""
+    definition = load_definition("dhfr")
+    build = definition.build
+    assert build["pdb"].endswith(".pdb.gz") and build["forcefield"] == ["amber99sb.xml", "tip3p.xml"]
+    data = DEFINITIONS_DIR / "data"
+    licence = (data / "LICENSE-OpenMM.txt").read_text(encoding="utf-8")
+    assert "examples/benchmarks/5dfr_solv-cube_equil.pdb" in licence and "Stanford University" in licence
+    assert "Permission is hereby granted" in licence
+    topology, positions, forcefield = build_model(definition)
+    assert topology.getNumAtoms() == len(positions) == 23558
+    system = create_system(definition, topology, forcefield)
+    assert system.getNumParticles() == 23558
+    assert not any(isinstance(force, mm.CMMotionRemover) for force in system.getForces())
+    (nonbonded,) = [force for force in system.getForces() if isinstance(force, mm.NonbondedForce)]
+    assert nonbonded.getNonbondedMethod() == mm.NonbondedForce.PME
+    assert nonbonded.getCutoffDistance().value_in_unit(unit.nanometers) == pytest.approx(0.9)
+    assert nonbonded.getUseSwitchingFunction()
+    assert nonbonded.getSwitchingDistance().value_in_unit(unit.nanometers) == pytest.approx(0.8)
+    assert nonbonded.getEwaldErrorTolerance() == pytest.approx(1e-5)
+    waters = sum(residue.name == "HOH" for residue in topology.residues())
+    solute_xh = sum(
+        _is_hydrogen(a) != _is_hydrogen(b) and a.residue.name != "HOH" for a, b in topology.bonds()
+    )
+    assert system.getNumConstraints() == 3 * waters + solute_xh
+    hydrogen = next(
+        atom.index for atom in topology.atoms() if _is_hydrogen(atom) and atom.residue.name != "HOH"
+    )
+    assert system.getParticleMass(hydrogen).value_in_unit(unit.dalton) == pytest.approx(1.008, abs=1e-3)
+    edges = system.getDefaultPeriodicBoxVectors()
+    assert [edges[i][i].value_in_unit(unit.nanometers) for i in range(3)] == pytest.approx([6.223] * 3)
+
+
+def test_a_gzipped_pdb_reads_as_the_plain_file(tmp_path):
+    plain = Path(app.__file__).parent / "data" / "test.pdb"
+    packed = tmp_path / "test.pdb.gz"
+    packed.write_bytes(gzip.compress(plain.read_bytes()))
+    read_plain, read_packed = read_pdb(plain), read_pdb(packed)
+    assert read_packed.topology.getNumAtoms() == read_plain.topology.getNumAtoms() == 8867
+    assert read_packed.positions == read_plain.positions
 
 
 def test_unknown_system_names_the_known_ones():
@@ -101,6 +153,9 @@ POTENTIAL_PER_WATER = {
     "tip4pew": (-46.2, 2.5),
     "water-cluster": (-36.5, 3.0),
     "villin": (-41.9, 2.5),
+    # DHFR (2,489 protein atoms in 7,023 waters), its solute's energy included: -42.78 (one build,
+    # 2026-11-27, CPU; temperature -0.3 σ from 300 K, density 0.996 g/cm³)
+    "dhfr": (-42.8, 2.5),
 }
 
 
@@ -296,7 +351,7 @@ def _start(name: str, cache):
 
 
 #: Systems whose quick build takes long and that differ from a default-suite system only in size.
-LARGE = {"tip3p-4nm"}
+LARGE = {"tip3p-4nm", "dhfr"}
 
 
 @pytest.mark.parametrize(
@@ -340,7 +395,8 @@ def test_full_protocol_builds(name, tmp_path):
     temperature's distance from 300 K (cluster: 250 K) in σ and the potential energy per water
     in kJ/mol: water-cluster (1 s) +0.4, -35.9; tip3p-2nm (16 s) +1.4, -39.25; tip3p-3nm (49 s)
     +0.5, -40.12; tip3p-4nm (77 s) +1.0, -39.82; spce-3nm (42 s) -2.0, -47.16; tip4pew-3nm
-    (31 s) -1.2, -46.53; villin (82 s) -1.4, -41.87.
+    (31 s) -1.2, -46.53; villin (82 s) -1.4, -41.87; dhfr (1,188 s: minimization ~7.5 min,
+    1000 Langevin steps ~12 min, with the cores shared by three other benchmarks) -0.3, -42.78.
     """
     prepared = prepare_system(name, cache_dir=tmp_path, rebuild=True)
     assert prepared.source == "built"

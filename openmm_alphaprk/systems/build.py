@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import gzip
 import sys
 from pathlib import Path
 
@@ -34,8 +35,7 @@ def build_model(definition: SystemDefinition) -> tuple[app.Topology, list, app.F
     elif kind == "water_cluster":
         modeller = _water_cluster(forcefield, build["water_model"], float(build["radius_nm"]))
     else:
-        path = _resolve_pdb(build["pdb"], definition.name)
-        pdb = app.PDBFile(str(path))
+        pdb = read_pdb(_resolve_pdb(build["pdb"], definition.name))
         modeller = app.Modeller(pdb.topology, pdb.positions)
     positions = modeller.positions.value_in_unit(unit.nanometers)
     return modeller.topology, positions, forcefield
@@ -181,6 +181,14 @@ def _remove_rigid_motion(system: mm.System, x: np.ndarray, v: np.ndarray) -> np.
     out = v.copy()
     out[massive] = vm - np.cross(omega, r)
     return out
+
+
+def read_pdb(path: Path) -> app.PDBFile:
+    """Read a PDB file with OpenMM's ``PDBFile``; a ``.pdb.gz`` is read through gzip."""
+    if path.name.endswith(".gz"):
+        with gzip.open(path, "rt", encoding="utf-8") as handle:
+            return app.PDBFile(handle)
+    return app.PDBFile(str(path))
 
 
 def _resolve_pdb(spec: str, name: str) -> Path:

@@ -177,7 +177,7 @@ def list_systems() -> list[str]:
     --------
     >>> from openmm_alphaprk.systems import list_systems
     >>> list_systems()
-    ['spce-3nm', 'tip3p-2nm', 'tip3p-3nm', 'tip3p-4nm', 'tip4pew-3nm', 'villin', 'water-cluster']
+    ['dhfr', 'spce-3nm', 'tip3p-2nm', 'tip3p-3nm', 'tip3p-4nm', 'tip4pew-3nm', 'villin', 'water-cluster']
     """
     return sorted(path.stem for path in DEFINITIONS_DIR.glob("*.toml"))
 
