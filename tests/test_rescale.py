@@ -475,7 +475,10 @@ def test_every_tenth_step_holds_energy_and_the_steps_between_are_rattles(spinnin
 
 
 def test_the_interval_runs_on_across_calls_checkpoints_and_restarts_at_a_new_reference(spinning_cluster):
-    """``step(7)`` then ``step(3)`` rescales after the 10th step; a checkpoint keeps the count; setState restarts it."""
+    """``step(7)`` then ``step(3)`` rescale after the 10th step; a checkpoint keeps the count.
+
+    A state the user sets retakes E_ref and restarts the count.
+    """
     system, x, v = spinning_cluster
     integrator = RattleRescaleIntegrator(H, rescale_interval=10)
     context = _context(system, integrator, x, v)

@@ -342,7 +342,7 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
             self._add_reference_check(on_moved=moved, **check)
 
     def _add_rattle_step(self) -> None:
-        """The RATTLE step from x0, v0 (F(x0) in ``fstart``), or the composition's stages."""
+        """Add the RATTLE step from x0, v0 (F(x0) in ``fstart``), or the composition's stages."""
         if self._composition is None:
             self._add_position_solve("0.5*fstart")
             self._add_velocity_update("0.5*f")
@@ -379,7 +379,7 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         self.addComputePerDof("x", "x")
 
     def _add_rescaling(self) -> None:
-        """The rigid-body motion, the scale factor, the halt without one and the scaled velocities."""
+        """Add the rigid-body motion, the scale factor, the halt without one and the scaled velocities."""
         self._add_rigid_body_motion()
         self._add_scale_factor()
         self._add_halt_without_factor()

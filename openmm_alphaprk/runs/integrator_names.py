@@ -304,7 +304,8 @@ def label(spec: str | IntegratorSpec) -> str:
     """Return the display label of an integrator name: ``alpha=1/6`` → ``α-RATTLE α = 1/6``.
 
     The one set of labels the benchmarks, reports and figures use (``RATTLE``,
-    ``RATTLE + rescaling``, ``RATTLE + rescaling every 10 steps``, ``VerletIntegrator``, ``α-RATTLE α = x``, ``α-RATTLE-4 α = x``, ``α-RATTLE energy
+    ``RATTLE + rescaling``, ``RATTLE + rescaling every 10 steps``, ``VerletIntegrator``,
+    ``α-RATTLE α = x``, ``α-RATTLE-4 α = x``, ``α-RATTLE energy
     mode``, ``α-RATTLE-4 energy mode``); ``x`` is written as given (fractions kept).
     """
     spec = parse_integrator(spec)

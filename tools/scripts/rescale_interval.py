@@ -11,7 +11,9 @@ docs/data/platforms/rescale_interval_cpu.json. In one run, on one platform:
   rescaling steps alone (every N-th), and the largest |H − E_ref|.
 
 Usage: ``python tools/scripts/rescale_interval.py --out docs/data/platforms/rescale_interval_cpu.json``
-(defaults: CPU platform, tip3p-2nm and tip3p-3nm, N = 1, 10, 100, 5 rounds x 300 steps, 20 ps).
+(defaults: CPU platform, tip3p-2nm and tip3p-3nm, N = 1, 10, 100, 5 rounds x 300 steps, 20 ps),
+then ``... --cpu-time-only --out <the same file>`` adds the step costs as single-thread CPU
+time (:func:`single_thread_cpu_times`), which a shared machine's load disturbs far less.
 """
 
 from __future__ import annotations
@@ -59,6 +61,42 @@ def step_times(box_name: str, intervals: list[int], platform: str, rounds: int, 
             }
             for row in rows
         ],
+    }
+
+
+def single_thread_cpu_times(box_name: str, intervals: list[int], rounds: int, steps: int) -> dict:
+    """Median CPU time per step (``time.process_time``, CPU platform with one thread), interleaved rounds.
+
+    Process time of one thread is what the step costs, not what the other processes on a
+    shared machine leave of the cores: the wall-clock rows of :func:`step_times` vary with
+    the load, these far less.
+    """
+    box = prepare_system(box_name)
+    platform = mm.Platform.getPlatformByName("CPU")
+    runs = {}
+    for name in _names(intervals):
+        integrator = make_integrator(name, TIMESTEP_PS)
+        context = mm.Context(box.system, integrator, platform, {"Threads": "1"})
+        context.setState(box.state)
+        if hasattr(integrator, "check_context"):
+            integrator.check_context(context)
+        integrator.step(5)
+        runs[name] = (integrator, context, [])
+    for _ in range(rounds):
+        for integrator, _context, times in runs.values():
+            start = time.process_time()
+            integrator.step(steps)
+            times.append((time.process_time() - start) / steps * 1e3)
+    baseline = float(np.median(runs["rattle"][2]))
+    return {
+        "rows": [
+            {
+                "name": label(name),
+                "cpu_ms_per_step": float(np.median(times)),
+                "ratio_to_rattle": float(np.median(times)) / baseline,
+            }
+            for name, (_integrator, _context, times) in runs.items()
+        ]
     }
 
 
@@ -113,8 +151,27 @@ def main() -> int:
     parser.add_argument("--steps", type=int, default=300)
     parser.add_argument("--ps", type=float, default=20.0)
     parser.add_argument("--skip-energy", action="store_true")
+    parser.add_argument("--skip-cost", action="store_true", help="no wall-clock step times")
+    parser.add_argument(
+        "--cpu-time-only",
+        action="store_true",
+        help="add single-thread CPU times per step to the JSON in --out (which must exist)",
+    )
     parser.add_argument("--out", required=True)
     args = parser.parse_args()
+    if args.cpu_time_only:
+        with open(args.out) as handle:
+            result = json.load(handle)
+        result["single_thread_cpu_time"] = {
+            box_name: single_thread_cpu_times(box_name, args.intervals, args.rounds, args.steps)
+            for box_name in args.boxes
+        }
+        for box_name, rows in result["single_thread_cpu_time"].items():
+            print(box_name, json.dumps(rows), flush=True)
+        with open(args.out, "w") as handle:
+            json.dump(result, handle, indent=1)
+            handle.write("\n")
+        return 0
     result = {
         "platform": args.platform,
         "openmm": mm.Platform.getOpenMMVersion(),
@@ -125,7 +182,7 @@ def main() -> int:
         "step_time": {},
         "energy": {},
     }
-    for box_name in args.boxes:
+    for box_name in [] if args.skip_cost else args.boxes:
         result["step_time"][box_name] = step_times(
             box_name, args.intervals, args.platform, args.rounds, args.steps
         )
