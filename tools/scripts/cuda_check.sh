@@ -10,8 +10,8 @@
 #      the package's settings at 2 fs, and OpenMM's DHFR benchmark system as OpenMM builds it at
 #      4 fs (tools/scripts/dhfr_openmm_settings.py), for ns/day beside OpenMM's published figure.
 # Usage: OUT=folder tools/scripts/cuda_check.sh
-# Files: $OUT/log.txt (everything printed) and $OUT/results.tar.gz (test log, long-run folders
-# without checkpoints and trajectories, cost JSONs). Knobs (environment): PLATFORM (CUDA),
+# Files: $OUT/log.txt (everything printed), $OUT/long.tar.gz (test log, long-run folders without
+# checkpoints and trajectories; written when part A ends) and $OUT/cost.tar.gz (cost JSONs). Knobs (environment): PLATFORM (CUDA),
 # PRECISIONS ("mixed single"), LONG_SYSTEM (tip3p-3nm), LONG_TIME (1000), MULTI_TIME (100),
 # LONG_LIMIT (270), TEST_LIMIT (280), COST_SYSTEMS, COST_STEPS (200), COST_ROUNDS (3), DHFR (1),
 # TESTS (the test files; "none": no tests).
@@ -34,14 +34,16 @@ COST_ROUNDS=${COST_ROUNDS:-3}
 DHFR=${DHFR:-1}
 TESTS=${TESTS:-tests/test_common_platform.py tests/test_rescale.py}
 ALPHAPRK="python3 -m openmm_alphaprk"
-# the rows of bench long, one process each; rescaling every 10 steps where the package has it
-ROWS="verlet rattle rattle+rescale alpha4=0 rattle4+rescale energy4"
+# the rows of bench long; one process per group (a comma joins rows that run one after the other);
+# rescaling every 10 steps where the package has it
+GROUPS_OF_ROWS="verlet rattle rattle+rescale alpha4=0,rattle4+rescale energy4"
 if python3 -c "from openmm_alphaprk.runs.integrator_names import parse_integrator as p; p('rattle+rescale@10')" 2>/dev/null; then
-    ROWS="$ROWS rattle+rescale@10"
+    GROUPS_OF_ROWS="$GROUPS_OF_ROWS rattle+rescale@10"
     INTERVAL_ROWS="rattle+rescale@10 rattle4+rescale@10"
 else
     INTERVAL_ROWS=""
 fi
+ROWS=${GROUPS_OF_ROWS//,/ }
 {
 nvidia-smi --query-gpu=name,driver_version --format=csv,noheader 2>/dev/null || echo "no nvidia-smi"
 python3 -c "import openmm; print('OpenMM', openmm.__version__)"
@@ -51,16 +53,16 @@ tests=""
 if [ "$TESTS" != none ]; then
     test_platforms=$(for p in $PRECISIONS; do printf '%s:%s,' "$PLATFORM" "$p"; done)
     ALPHAPRK_TEST_PLATFORMS=${test_platforms%,} ALPHAPRK_REQUIRE_PLATFORMS=1 \
-        timeout "$TEST_LIMIT" python3 -m pytest -q -p no:cacheprovider -n 4 --durations=5 \
+        timeout "$TEST_LIMIT" python3 -m pytest -q -p no:cacheprovider -n 3 --durations=5 \
         $TESTS >"$WORK/tests.log" 2>&1 &
     tests=$!
 fi
 pids=""
 for precision in $PRECISIONS; do
-    for row in $ROWS; do
+    for group in $GROUPS_OF_ROWS; do
         timeout "$LONG_LIMIT" $ALPHAPRK bench long --system "$LONG_SYSTEM" --platform "$PLATFORM" \
-            --precision "$precision" --time "$LONG_TIME" --time-multi "$MULTI_TIME" --integrators "$row" \
-            --output "$WORK/long_$precision" --no-progress >"$WORK/long_${precision}_${row//[^a-z0-9]/_}.log" 2>&1 &
+            --precision "$precision" --time "$LONG_TIME" --time-multi "$MULTI_TIME" --integrators ${group//,/ } \
+            --output "$WORK/long_$precision" --no-progress >"$WORK/long_${precision}_${group//[^a-z0-9]/_}.log" 2>&1 &
         pids="$pids $!"
     done
 done
@@ -77,29 +79,29 @@ if [ -n "$tests" ]; then
     echo "tests (exit $?, $((SECONDS - start)) s):"
     tail -15 "$WORK/tests.log"
 fi
+tar -C "$WORK" --exclude='*.chk' --exclude='*.chk.previous' --exclude='*.dcd' --exclude='system.xml' \
+    -czf "$OUT/long.tar.gz" $(cd "$WORK" && ls -d long_* tests.log 2>/dev/null)
 echo "== B: cost, alone on the GPU ($((SECONDS - start)) s)"
 i=0
 for system in $COST_SYSTEMS; do
     i=$((i + 1))
     echo "-- cost, $system, mixed ($((SECONDS - start)) s)"
-    timeout 80 $ALPHAPRK bench cost --system "$system" --platform "$PLATFORM" --precision mixed \
+    timeout 60 $ALPHAPRK bench cost --system "$system" --platform "$PLATFORM" --precision mixed \
         --steps "$COST_STEPS" --rounds "$COST_ROUNDS" --energy-steps 10 \
         --integrators verlet rattle rattle+rescale $INTERVAL_ROWS alpha4=0 rattle4+rescale energy4 \
         --json "$WORK/cost_${i}_$(basename "$system" .toml).json" 2>&1 | grep -v "^round\|^energy pass\|unsupported OpenCL"
 done
 if [ "$DHFR" = 1 ]; then
     echo "-- cost, dhfr (package settings), 2 fs, mixed ($((SECONDS - start)) s)"
-    timeout 90 $ALPHAPRK bench cost --system dhfr --platform "$PLATFORM" --precision mixed \
+    timeout 70 $ALPHAPRK bench cost --system dhfr --platform "$PLATFORM" --precision mixed \
         --steps "$COST_STEPS" --rounds "$COST_ROUNDS" --energy-steps 10 \
         --integrators verlet rattle rattle+rescale $INTERVAL_ROWS alpha4=0 rattle4+rescale \
         --json "$WORK/cost_dhfr_2fs.json" 2>&1 | grep -v "^round\|^energy pass\|unsupported OpenCL"
     echo "-- DHFR as OpenMM's benchmark builds it, 4 fs, mixed ($((SECONDS - start)) s)"
-    timeout 60 python3 tools/scripts/dhfr_openmm_settings.py --platform "$PLATFORM" --precision mixed \
+    timeout 50 python3 tools/scripts/dhfr_openmm_settings.py --platform "$PLATFORM" --precision mixed \
         --integrators rattle rattle+rescale ${INTERVAL_ROWS%% *} rattle4+rescale --steps 500 --rounds 3 \
         --json "$WORK/dhfr_openmm_settings.json" 2>&1
 fi
 echo "done in $((SECONDS - start)) s"
 } 2>&1 | tee "$OUT/log.txt"
-cp "$OUT/log.txt" "$WORK/log.txt"
-tar -C "$WORK" --exclude='*.chk' --exclude='*.chk.previous' --exclude='*.dcd' --exclude='system.xml' \
-    -czf "$OUT/results.tar.gz" .
+tar -C "$WORK" -czf "$OUT/cost.tar.gz" $(cd "$WORK" && ls cost_*.json dhfr_*.json 2>/dev/null)
