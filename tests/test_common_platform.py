@@ -274,14 +274,26 @@ def test_energy_modes_keep_one_reference_energy_across_reordering(water_box, spe
     assert integrator.controller_totals()["reference_resets"] == 2
 
 
+def held_spread(e_ref: float) -> float:
+    """Largest standard deviation of H − E_ref read by States at held steps (kJ/mol).
+
+    5e-9 kJ/mol, or 2e-9 of |E_ref| where that is more: the relative resolution of a mixed
+    precision energy read on CUDA (measured 5.8e-6 kJ/mol on the ~7,000 kJ/mol test box on an
+    H100, 2026-11-27); four orders of magnitude below RATTLE's RMS on that box.
+    """
+    return max(5e-9, 2e-9 * abs(e_ref))
+
+
 @pytest.mark.parametrize("spec", with_precision("mixed"))
 def test_rescaling_keeps_its_reference_energy_and_carried_momentum_across_reordering(water_box, spec):
     """P is carried between steps and the state compared once per call; the reorder moves neither.
 
     H read by the State differs from the program's own energy by a constant in mixed precision
-    (measured −5.1e-4 kJ/mol on OpenCL/pocl, 2026-11-27, within the energy's noise): the spread of
-    H − E_ref is what the scaling holds (its standard deviation measured 9.2e-10 kJ/mol; RATTLE's RMS
-    0.88), and |P − P_carried| 0.0017 amu nm/ps after the 50 steps. Bounds about 5x above.
+    (measured −5.1e-4 kJ/mol on OpenCL/pocl, −8.2e-4 on CUDA, 2026-11-27, within the energy's noise):
+    the spread of H − E_ref is what the scaling holds, to the resolution of a State's energy read
+    (standard deviation measured 9.2e-10 kJ/mol on pocl, 4.5e-6 and 5.8e-6 on CUDA mixed on an
+    H100, whose energy sums are not reproducible from one read to the next; RATTLE's RMS 0.88), and
+    |P − P_carried| 0.0017 amu nm/ps after the 50 steps. Bounds: held_spread, and 5x above for P.
     """
     run = REORDERING_RUNS[2]
     integrator = RattleRescaleIntegrator(H)
@@ -292,7 +304,7 @@ def test_rescaling_keeps_its_reference_energy_and_carried_momentum_across_reorde
     residuals = _residuals(context, integrator, run.steps, e_ref, steps_per_sample=2)
     assert _steps_since_reorder(context) == (run.steps, run.steps - run.reorder_step)
     assert integrator.rescale_totals()["reference_resets"] == 1
-    assert abs(residuals.mean()) < 0.005 and residuals.std() < 5e-9
+    assert abs(residuals.mean()) < 0.005 and residuals.std() < held_spread(e_ref)
     masses = np.array([context.getSystem().getParticleMass(i).value_in_unit(unit.dalton)
                        for i in range(context.getSystem().getNumParticles())])  # fmt: skip
     actual = (masses[:, None] * velocities_of(context)).sum(axis=0)
@@ -322,7 +334,7 @@ def test_rescaling_every_tenth_step_keeps_its_reference_energy_across_reordering
     assert integrator.rescale_totals()["reference_resets"] == 1
     assert integrator.rescalings == run.steps // 10
     held, between = residuals[1::2], residuals[::2]
-    assert abs(held.mean()) < 0.005 and held.std() < 5e-9, held
+    assert abs(held.mean()) < 0.005 and held.std() < held_spread(e_ref), held
     assert np.abs(between - held.mean()).max() > 0.01  # the plain steps are RATTLE's (the check can fail)
     context.setVelocities(1.1 * velocities_of(context))  # a change the user makes is still seen
     integrator.step(1)
