@@ -409,6 +409,32 @@ def _options(args: argparse.Namespace) -> RunOptions:
     )
 
 
+def _interval_note(names: Sequence[str], energy_interval: int) -> str:
+    """Say which rows rescale every N steps with N dividing the energy interval: sampled when held.
+
+    Examples
+    --------
+    >>> from openmm_alphaprk.benchmarks.long import _interval_note
+    >>> _interval_note(["rattle", "rattle+rescale@10"], 50)[:60]
+    ' RATTLE + rescaling every 10 steps: every energy row falls on'
+    >>> _interval_note(["rattle+rescale@10"], 25)
+    ''
+    """
+    held = [
+        label(name)
+        for name in names
+        if getattr(parse_integrator(name), "rescale_interval", 1) > 1
+        and energy_interval % parse_integrator(name).rescale_interval == 0
+    ]
+    if not held:
+        return ""
+    return (
+        f" {', '.join(held)}: every energy row falls on a rescaled step (the energy interval is a multiple "
+        "of N), where H = E_ref; between them H moves as RATTLE's does (an energy interval that N does "
+        "not divide samples those steps too)."
+    )
+
+
 def _one_system(name: str, args: argparse.Namespace, output: Path) -> tuple[dict, bool]:
     """Run (unless ``--report``) and measure one system; return its JSON entry and if it was interrupted."""
     prepared = prepare_system(system_to_prepare(name, args), progress=not args.no_progress)
@@ -446,6 +472,7 @@ def _one_system(name: str, args: argparse.Namespace, output: Path) -> tuple[dict
         for n, base in (("energy4", "alpha4=0"), ("energy", "rattle"))
         if windows_against(rows, n, base)
     }
+    note += _interval_note(args.integrators, args.energy_interval)
     text = (
         table
         + "\n\n"
