@@ -416,7 +416,7 @@ def _interval_note(names: Sequence[str], energy_interval: int) -> str:
     --------
     >>> from openmm_alphaprk.benchmarks.long import _interval_note
     >>> _interval_note(["rattle", "rattle+rescale@10"], 50)[:60]
-    ' RATTLE + rescaling every 10 steps: every energy row falls on'
+    ' RATTLE + rescaling every 10 steps: every energy row falls o'
     >>> _interval_note(["rattle+rescale@10"], 25)
     ''
     """
