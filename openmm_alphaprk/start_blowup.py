@@ -152,7 +152,23 @@ def _message(integrator: mm.CustomIntegrator, original: str) -> str:
             *start_causes,
         )
     listed = "; ".join(f"({i}) {cause}" for i, cause in enumerate(causes, start=1))
-    return f"{head}. Likely causes: {listed}. {original}"
+    return f"{head}. Likely causes: {listed}.{_energy_mode_record(integrator)} {original}"
+
+
+def _energy_mode_record(integrator: mm.CustomIntegrator) -> str:
+    """For the energy mode: how many steps before the blow-up its controller could not hold (α = 0 steps)."""
+    if not getattr(integrator, "energy_mode", False):
+        return ""
+    try:
+        zero = int(integrator.getGlobalVariableByName("steps_alpha_zero"))
+    except mm.OpenMMException:  # a program without the count
+        return ""
+    steps = _steps_taken(integrator)
+    return (
+        f" The energy mode's controller could not hold {zero} of the {steps} steps before and took them "
+        "as alpha = 0 steps of its base (RATTLE or the composition of RATTLE steps): try the base "
+        "(alpha=0) from this start; where it blows up too, the start or the step is the cause."
+    )
 
 
 def _unusual_alpha(integrator: mm.CustomIntegrator) -> float | None:

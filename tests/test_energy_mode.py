@@ -140,7 +140,9 @@ def test_energy_mode_on_a_water_box_beats_rattle_and_keeps_constraints(
     assert vel_err < 1e-6
     lo, hi = integrator.alpha_bounds
     assert lo <= integrator.alpha <= hi
-    assert integrator.force_evaluations_per_step <= 6.5, integrator.force_evaluations_per_step
+    # 6.23 force evaluations per step before the α = 0 trial; 7.13 with it (2026-11-27: a missed
+    # step that ends as the α = 0 step or in its best α trial pays one more evaluation)
+    assert integrator.force_evaluations_per_step <= 7.5, integrator.force_evaluations_per_step
 
 
 def test_controller_recovers_from_a_bad_starting_alpha():

@@ -50,8 +50,8 @@ STAGES = {
         "At each trial's end: the slope, the next α by the damped secant step, and the move limit."
     ),
     "Fallback and best trial": (
-        "How the step ended: outside the tolerance (a fallback), α at a bound, and on a composition "
-        "the best trial's state kept and restored."
+        "How the step ended: within the tolerance; or, where the α trials could not hold it, as the "
+        "α = 0 step (a fallback) or in its best α trial where that ended closer to E_ref; α at a bound."
     ),
     "Bookkeeping": (
         "Totals over every step since the integrator was made (`controller_totals()`), kept inside the "
@@ -167,8 +167,13 @@ MEANINGS = {
         "trials": "Trials of α in this step (a completed short trial is not counted again).",
         "controller_done": "1 when the trial ending now is the step's last: α stopped and the midpoint "
         "converged, the midpoint forces ran out, the residual is not finite, or the midpoint failed.",
-        "retry": "1 when the controller stopped with a midpoint change above the accepted one: one more "
-        "pass, without a midpoint force, falls back to the step's start.",
+        "zero_trial": "1 once the α trials could not hold the step (the controller stopped on a full "
+        "trial outside the tolerance, or the midpoint failed; order 2: and the trial neither ended "
+        "closer to E_ref than the α = 0 step, estimated on the secant, nor moved `residual_mean` towards "
+        "0): the next pass is the α = 0 trial, the base's step without a midpoint force, which ends the "
+        "step; after the step, 1 if the step is that α = 0 step.",
+        "zero_done": "The value of `zero_trial` when the trial ending now started: 1 at the α = 0 trial's "
+        "end, which leaves the controller's records as they were.",
         "restarting": "1 when a new trial starts: its first midpoint pass solves x1 again with the new α.",
         "completing": "Order 4: 1 for the pass that takes the later stages at the α a short trial "
         "stopped at (its measured residual decides whether the step ends).",
@@ -181,12 +186,16 @@ MEANINGS = {
         "previous_midpoint_change": "The change before it (nm; 1e30 at a new trial or stage).",
         "sum_change2": "Σ (h² α ΔF/m)² over degrees of freedom (nm²), behind `midpoint_change`.",
         "midpoint_failed": "1 when the step's midpoint iteration failed (it stopped above the accepted "
-        "change, or not finite): the step falls back to its start and `step()` raises.",
+        "change) or a residual was not finite: the step is the α = 0 trial's, and the predictor is not "
+        "updated from it.",
         "x1_sensitivity": "dx1/dα = h² |F(x_m) − F0|/m of the α stage (nm per unit α, RMS per degree of "
         "freedom).",
         "sum_sensitivity2": "Σ (h² (F(x_m) − F0)/m)² over degrees of freedom (nm²), behind `x1_sensitivity`.",
         "stale_midpoint_change": "Bound on the change the last midpoint force, kept under the new α, "
         "makes to x1: 2 |α Δα| dx1/dα (nm).",
+        "last_trial_change": "`midpoint_change` at the previous α trial's end (nm; 1e30 at the step's "
+        "start): a change that grew fourfold at the same α, above ten times the tolerance, is a "
+        "diverging midpoint iteration.",
         "reuse_midpoint": "1 if the new trial keeps the last midpoint force (a short trial whose kept "
         "force stays within `midpoint_tolerance`).",
     },
@@ -221,25 +230,34 @@ MEANINGS = {
         "(kJ/mol per unit α).",
         "trust": "The move limit of one secant update; order 4 halves it after a swing that missed and "
         "grows it back ×1.5, up to `max_alpha_change` (order 2: `max_alpha_change`).",
-        "last_move": "Order 4: the last step's move of α, `alpha` − `alpha_start`.",
+        "last_move": "Order 4: the last step's move of α, `alpha_tried` − `alpha_start`.",
+        "alpha_tried": "α of the step's last α trial (before an α = 0 trial), for the move limit.",
     },
     "Fallback and best trial": {
-        "fell_back": "1 if the step ended outside the energy tolerance (a rejected step is not counted).",
+        "fell_back": "1 if the step ended outside the energy tolerance (the α = 0 step, or the best α "
+        "trial where that ended closer to E_ref).",
         "alpha_at_bound": "1 if the step's α* is at a bound.",
-        "trial_better": "1 if the trial ending now is the step's best so far (smallest |r| of the full "
-        "trials whose midpoint converged).",
+        "trial_better": "1 if the α trial ending now is the step's best so far (smallest |r| of the full "
+        "trials whose midpoint converged and whose r is finite).",
         "best_set": "1 once the step kept a best trial.",
         "residual_best": "r of the step's best trial (kJ/mol).",
         "alpha_best": "α of the step's best trial.",
-        "restored_best": "1 if the step ends in its best trial's state: its last trial missed the "
-        "tolerance and did worse.",
+        "residual_mean": "Order 2: the running mean of H − E_ref after each step (weight "
+        "`predictor_forgetting`; kJ/mol): a missed α trial kept without the α = 0 trial must move it "
+        "towards 0.",
+        "restored_best": "1 if a step that took its α = 0 trial ends in its best α trial's state "
+        "instead, which ended strictly closer to E_ref.",
     },
     "Bookkeeping": {
         "steps_within_tolerance": "Steps that ended within the energy tolerance.",
         "steps_fallen_back": "Steps that ended outside it.",
+        "steps_alpha_zero": "Steps taken at α = 0 (the base's step) because the α trials could not "
+        "hold them and none ended closer to E_ref.",
         "steps_at_bound": "Steps whose α* was at a bound.",
-        "steps_restored": "Steps that ended in an earlier trial's state.",
-        "midpoint_failures": "Steps whose midpoint iteration failed (rejected).",
+        "steps_restored": "Steps the α trials could not hold that ended in their best α trial, "
+        "closer to E_ref than the α = 0 step.",
+        "midpoint_failures": "Not written by the energy mode (0): a failed midpoint iteration makes "
+        "the step the α = 0 step instead of an error.",
         "sum_residual_squared": "Σ r² over the steps ((kJ/mol)²), for the RMS residual.",
         "max_abs_residual": "The largest |r| after a step (kJ/mol).",
         "midpoints_reused": "Trials that kept the last midpoint force.",
@@ -260,13 +278,13 @@ PER_DOF_MEANINGS = {
     "fmid_last": "The last trial's midpoint force, kept for the next step's prediction (kJ/mol/nm).",
     "xend": "Positions the step ended with, for the reference check (nm).",
     "vend": "Velocities the step ended with (nm/ps).",
-    "xstep": "Positions at the step's start: where a failed midpoint iteration falls back to (nm).",
-    "vstep": "Velocities at the step's start (nm/ps).",
+    "xstep": "Declared by the composition's pieces; not used by the energy mode (nm).",
+    "vstep": "Declared by the composition's pieces; not used by the energy mode (nm/ps).",
     "xa": "Positions at the start of the α stage, where a new trial starts (nm).",
     "va": "Velocities there (nm/ps).",
     "fa": "The force there (kJ/mol/nm).",
     "fstart_last": "The force at the start of the last step's α stage: the midpoint force is predicted as "
     "F there plus the last step's offset `fmid_last` − `fstart_last` (kJ/mol/nm).",
-    "xbest": "Positions at the end of the step's best trial (nm).",
+    "xbest": "Positions at the end of the step's best α trial (nm).",
     "vbest": "Velocities there (nm/ps).",
 }
