@@ -1,0 +1,235 @@
+"""The generated blocks of docs/long_runs.md (and the README's long-run columns) from docs/data/long_runs/.
+
+``python -m tools.reports.long_runs`` rewrites them; ``--check`` only compares (exit 1 if a
+block differs from what the data renders).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from tools.reports.markdown import markdown_table, read_blocks, update_page
+from tools.reports.numbers import sig, times, two
+from tools.reports.sources import DOCS, ROOT, Source, load
+
+PAGE = DOCS / "long_runs.md"
+CUDA = "long_runs/cuda_h100/"
+SEQUENTIAL = CUDA + "long_sequential_mixed.json"
+CONCURRENT = {"mixed": CUDA + "long_concurrent_mixed.json", "single": CUDA + "long_concurrent_single.json"}
+COST = {
+    "2,661": CUDA + "cost_tip3p-3nm.json",
+    "21,384": CUDA + "cost_tip3p-6nm.json",
+    "72,279": CUDA + "cost_tip3p-9nm.json",
+    "DHFR 23,558": CUDA + "cost_dhfr_2fs.json",
+}
+OPENMM_DHFR = CUDA + "dhfr_openmm_settings_4fs.json"
+CPU = "long_runs/cpu_tip3p-2nm.json"
+#: Goals of the rescaling's cost on CUDA (mixed): step time against RATTLE's, by atoms.
+GOALS = {"21,384": 1.35, "72,279": 1.25}
+
+
+def _measured(source: Source) -> str:
+    return f"{source.machine}, {source.date} (commit {source.commit}); data `docs/data/{source.path}`"
+
+
+def _drift(row: dict) -> str:
+    drift, error = row["drift_per_dof"], row["drift_per_dof_standard_error"]
+    if drift != drift:  # NaN: too few samples
+        return "-"
+    if not row["drift_resolved"]:
+        return f"{sig(drift)} ± {sig(error)} (not resolved)"
+    return f"**{sig(drift)} ± {sig(error)}**"
+
+
+def _speed(row: dict, rattle_ms: float | None) -> list[str]:
+    ms = row["ms_per_step"]
+    if ms != ms:
+        return ["-", "-", "-"]
+    ratio = times(ms / rattle_ms) if rattle_ms else "-"
+    return [f"{ms:.3f}", f"{row['ns_per_day']:,.0f}", ratio]
+
+
+def long_table(path: str, speed: bool = True) -> str:
+    """Render one ``bench long`` result: length, drift, RMS, max, worst window, speed of each row."""
+    data, source = load(path)
+    ((system, entry),) = data.items()
+    rows = entry["rows"]
+    rattle = next((r["ms_per_step"] for r in rows if r["integrator"] == "rattle"), None)
+    header = ["integrator", "ps", "drift kJ/mol/ns/DOF", "RMS kJ/mol", "max", "worst 10 ps RMS"]
+    if speed:
+        header += ["ms/step", "ns/day", "× RATTLE"]
+    table = []
+    for row in rows:
+        name = f"`{row['integrator']}`" + ("" if row["complete"] else " (stopped)")
+        cells = [
+            name,
+            f"{row['simulated_ps']:.0f}",
+            _drift(row),
+            sig(row["rms_residual"]),
+            sig(row["max_abs_residual"]),
+            sig(row["worst_window_rms"]),
+        ]
+        if speed:
+            cells += _speed(row, rattle)
+        table.append(cells)
+    return f"{entry['header']}. Measured on {_measured(source)}.\n\n" + markdown_table(header, table)
+
+
+def energy_mode_windows(path: str) -> str:
+    """Compare the energy mode's windowed RMS with its α = 0 base's and RATTLE's over the same run."""
+    data, _ = load(path)
+    ((_, entry),) = data.items()
+    rows = {row["integrator"]: row for row in entry["rows"]}
+    energy, base, rattle = rows.get("energy4"), rows.get("alpha4=0"), rows.get("rattle")
+    if not (energy and base and rattle):
+        return "The run has no energy4, alpha4=0 and RATTLE rows to compare."
+    e, b, r = (row["windows"]["rms"] for row in (energy, base, rattle))
+    n = min(len(e), len(b), len(r))
+    to_base = [x / y for x, y in zip(e[:n], b[:n])]
+    to_rattle = [y / x for x, y in zip(e[:n], r[:n])]  # how many times below RATTLE's window
+    controller = energy.get("controller", {})
+    fell = controller.get("fraction_fallen_back")
+    fell_text = (
+        f"; {100 * fell:.1f} % of its steps fell back (ended above its energy tolerance)" if fell else ""
+    )
+    return (
+        f"`energy4` over {n} windows of {energy['windows']['window_ps']:g} ps: above `alpha4=0`'s RMS in "
+        f"{sum(x > 1 for x in to_base)} (at most {two(max(to_base))}× it); below 1/50 of RATTLE's RMS over "
+        f"the same window in {sum(x >= 50 for x in to_rattle)} (at worst 1/{times(min(to_rattle))}, over the "
+        f"whole run 1/{times(rattle['rms_residual'] / energy['rms_residual'])}){fell_text}."
+    )
+
+
+def precision_table() -> str:
+    """Drift of the concurrent runs, mixed against single precision (no speed: 12 runs shared the GPU)."""
+    lines, sources = {}, []
+    for precision, path in CONCURRENT.items():
+        data, source = load(path)
+        sources.append(source)
+        ((_, entry),) = data.items()
+        for row in entry["rows"]:
+            lines.setdefault(row["integrator"], {})[precision] = row
+    table = []
+    for name, by_precision in lines.items():
+        cells = [f"`{name}`"]
+        for precision in CONCURRENT:
+            row = by_precision.get(precision)
+            cells += (
+                [f"{row['simulated_ps']:.0f}", _drift(row), sig(row["rms_residual"])] if row else ["-"] * 3
+            )
+        table.append(cells)
+    header = ["integrator"] + [
+        f"{p} {what}" for p in CONCURRENT for what in ("ps", "drift kJ/mol/ns/DOF", "RMS kJ/mol")
+    ]
+    return (
+        f"tip3p-3nm, 2 fs, CUDA; twelve runs at once on one GPU, each stopped after 260 s, so the lengths "
+        f"differ and no speed is given. Measured on {_measured(sources[0])}; single precision "
+        f"`docs/data/{sources[1].path}`.\n\n" + markdown_table(header, table)
+    )
+
+
+def cost_table() -> str:
+    """Step times of every row against RATTLE's (and α-RATTLE-4's), CUDA mixed, by system."""
+    loaded = {atoms: load(path) for atoms, path in COST.items()}
+    wanted = [
+        ("verlet", "VerletIntegrator", "rattle"),
+        ("rattle", "RATTLE", "verlet"),
+        ("rattle+rescale", "RATTLE + rescaling", "rattle"),
+        ("rattle+rescale@10", "RATTLE + rescaling every 10 steps", "rattle"),
+        ("alpha4=0", "α-RATTLE-4 α = 0", "rattle"),
+        ("rattle4+rescale", "RATTLE-4 + rescaling", "alpha4=0"),
+        ("rattle4+rescale@10", "RATTLE-4 + rescaling every 10 steps", "alpha4=0"),
+        ("energy4", "α-RATTLE-4 energy mode", "alpha4=0"),
+    ]
+    labels = {label: name for name, label, _ in wanted}
+    table = []
+    for name, _, against in wanted:
+        cells = [f"`{name}`", f"`{against}`"]
+        for atoms, (data, _) in loaded.items():
+            rows = {labels.get(r["name"], r["name"]): r for r in data["rows"]}
+            row, base = rows.get(name), rows.get(against)
+            if row is None or base is None:
+                cells.append("-")
+                continue
+            ratio = row["ms_per_step"] / base["ms_per_step"]
+            goal = GOALS.get(atoms) if name == "rattle+rescale" else None
+            mark = f" (goal ≤ {goal})" if goal else ""
+            cells.append(f"{ratio:.2f}× · {row['ns_per_day']:,.0f}{mark}")
+        table.append(cells)
+    first = next(iter(loaded.values()))[1]
+    header = ["integrator", "against"] + [f"{atoms} atoms: step ratio · ns/day" for atoms in loaded]
+    return (
+        "`alphaprk bench cost --platform CUDA --precision mixed --steps 200 --rounds 3` on each system, "
+        "2 fs, every row of a system in one run, median of 3 interleaved rounds, each timed between two "
+        f"device synchronisations; TIP3P boxes of 3, 6 and 9 nm and `dhfr`. Measured on {_measured(first)} "
+        f"(and the files beside it).\n\n" + markdown_table(header, table)
+    )
+
+
+def openmm_dhfr_table() -> str:
+    """OpenMM's DHFR benchmark system as OpenMM builds it, 4 fs: ns/day of each integrator."""
+    data, source = load(OPENMM_DHFR)
+    table = [
+        [
+            row["integrator"],
+            f"{row['ms_per_step']:.3f}",
+            f"{row['ns_per_day']:,.0f}",
+            f"{row['ratio_to_langevin_middle']:.2f}",
+            f"{row['ratio_to_verlet']:.2f}",
+        ]
+        for row in data["rows"]
+    ]
+    header = ["integrator", "ms/step", "ns/day", "× LangevinMiddle", "× Verlet"]
+    return (
+        f"{data['header']}. `python tools/scripts/dhfr_openmm_settings.py --platform CUDA --precision "
+        "mixed`, "
+        f"measured on {_measured(source)}.\n\n" + markdown_table(header, table)
+    )
+
+
+def render() -> dict[Path, dict[str, str]]:
+    """Every generated block, by page and block name."""
+    blocks = {
+        "cuda long": long_table(SEQUENTIAL),
+        "cuda energy mode": energy_mode_windows(SEQUENTIAL),
+        "cuda precision": precision_table(),
+        "cuda cost": cost_table(),
+        "openmm dhfr": openmm_dhfr_table(),
+    }
+    if (DOCS / "data" / CPU).is_file():
+        blocks["cpu long"] = long_table(CPU)
+        blocks["cpu energy mode"] = energy_mode_windows(CPU)
+    return {PAGE: blocks}
+
+
+def differences() -> list[str]:
+    """Return ``PAGE: BLOCK`` for every block that is missing or differs from what the data renders."""
+    found = []
+    for page, blocks in render().items():
+        on_page = read_blocks(page.read_text(encoding="utf-8"))
+        found += [
+            f"{page.relative_to(ROOT)}: {name}" for name, text in blocks.items() if on_page.get(name) != text
+        ]
+    return found
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--check", action="store_true", help="write nothing; exit 1 if a block differs")
+    args = parser.parse_args(argv)
+    if args.check:
+        stale = differences()
+        print("\n".join(stale) or "every generated block is the data's")
+        return 1 if stale else 0
+    for page, blocks in render().items():
+        missing = update_page(page, blocks)
+        if missing:
+            raise SystemExit(f"{page.relative_to(ROOT)} has no block for {missing}")
+    print("rewrote the generated blocks of " + ", ".join(str(p.relative_to(ROOT)) for p in render()))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
