@@ -97,8 +97,8 @@ def energy_mode_windows(path: str) -> str:
     return (
         f"`energy4` over {n} windows of {energy['windows']['window_ps']:g} ps: above `alpha4=0`'s RMS in "
         f"{sum(x > 1 for x in to_base)} (at most {two(max(to_base))}× it); below 1/50 of RATTLE's RMS over "
-        f"the same window in {sum(x >= 50 for x in to_rattle)} (at worst 1/{times(min(to_rattle))}, over the "
-        f"whole run 1/{times(rattle['rms_residual'] / energy['rms_residual'])}){fell_text}."
+        f"the same window in {sum(x >= 50 for x in to_rattle)} (at worst 1/{times(min(to_rattle))}; over their "
+        f"runs 1/{times(rattle['rms_residual'] / energy['rms_residual'])}){fell_text}."
     )
 
 
