@@ -155,8 +155,32 @@ class Accuracy:
 
 
 # ------------------------------------------------------------------ the blocks
+#: The long runs whose drift and ns/day the README's table gives (H100, CUDA mixed).
+LONG_RUN = "long_runs/cuda_h100/long_sequential_mixed.json"
+LONG_RUN_DHFR = "long_runs/cuda_h100/cost_dhfr_2fs.json"
+
+
+def long_run_columns() -> tuple[dict[str, list[str]], list[Source]]:
+    """Return the README's long-run cells by integrator name: drift per DOF and ns/day, and the sources."""
+    data, source = load(LONG_RUN)
+    ((_, entry),) = data.items()
+    dhfr, dhfr_source = load(LONG_RUN_DHFR)
+    dhfr_speed = {row["name"]: row["ns_per_day"] for row in dhfr["rows"]}
+    cells = {}
+    for row in entry["rows"]:
+        drift, error = row["drift_per_dof"], row["drift_per_dof_standard_error"]
+        shown = f"{sig(drift)} ± {sig(error)}" if row["drift_resolved"] else f"none (± {sig(error)})"
+        speed = dhfr_speed.get(row["label"])
+        ns_day = f"{row['ns_per_day']:,.0f}" if row["ns_per_day"] == row["ns_per_day"] else "-"
+        cells[row["integrator"]] = [
+            f"{shown} ({row['simulated_ps']:.0f} ps)",
+            ns_day + (f" / {speed:,.0f}" if speed else " / -"),
+        ]
+    return cells, [source, dhfr_source]
+
+
 def readme_table(a2: Accuracy, a4: Accuracy) -> str:
-    """Render the README's "which integrator for which job" from the accuracy runs."""
+    """Render the README's "which integrator for which job" from the accuracy and long runs."""
     rattle_rms = per_system([a2.rms(s, RATTLE) for s in SYSTEMS])
     rattle_x = per_system([a2.position(s, RATTLE) for s in SYSTEMS])
     rescale_rms = max(a2.rms(s, RESCALE) for s in SYSTEMS)
@@ -176,6 +200,12 @@ def readme_table(a2: Accuracy, a4: Accuracy) -> str:
             "`RattleRescaleIntegrator(h)` (`rattle+rescale`)",
             "1",
             f"error at round-off (≤ {sig(rescale_rms, 1)}); RATTLE's positions",
+        ],
+        [
+            "remove the drift at nearly RATTLE's speed",
+            "`RattleRescaleIntegrator(h, rescale_interval=10)` (`rattle+rescale@10`)",
+            "1",
+            "H = E_ref at every 10th step, RATTLE's steps between; RATTLE's positions",
         ],
         [
             "**hold the energy and track the dynamics**",
@@ -206,12 +236,20 @@ def readme_table(a2: Accuracy, a4: Accuracy) -> str:
             f"{per_system(e4, lambda v: times(1 / v))}× *above* h/{'/'.join(e4_k)}",
         ],
     ]
+    long_cells, long_sources = long_run_columns()
+    names = ("rattle", "rattle+rescale", "rattle+rescale@10", "rattle4+rescale", "alpha4=0", None, "energy4")
+    for line, name in zip(lines, names, strict=True):
+        line += long_cells.get(name, ["-", "-"])
     caption = (
         f"{a2.caption(SYSTEMS)}. Error = RMS(H − E_ref) over the run (kJ/mol); positions = RMS "
         f'distance per atom to RATTLE at h/64 after {HORIZON_FS:g} fs; "h/k" = RATTLE at the same '
-        f"force evaluations. Data: {_files(a2.sources + a4.sources)}."
+        f"force evaluations. Long runs ([long runs](docs/long_runs.md)): drift of H − E_ref in kJ/mol/ns "
+        f"per degree of freedom and ns/day on an H100 (CUDA mixed, 2 fs, {long_sources[0].date}): "
+        f"tip3p-3nm (2,661 atoms) in one `alphaprk bench long` run / dhfr (23,558 atoms) in "
+        f"`alphaprk bench cost`. Data: {_files(a2.sources + a4.sources + long_sources)}."
     )
-    return caption + "\n\n" + markdown_table(["job", "use", "evaluations per step", "measured"], lines)
+    header = ["job", "use", "evaluations per step", "measured", "long-run drift", "ns/day (H100)"]
+    return caption + "\n\n" + markdown_table(header, lines)
 
 
 def integrators_table(a2: Accuracy, a4: Accuracy, md: dict, md_source: Source, gpu: dict) -> str:
