@@ -484,8 +484,26 @@ def rescale_sync_table() -> str:
     return caption + "\n\n" + markdown_table(header, lines)
 
 
+#: bench cost on an H100 of the program that sums K alone per step (2026-11-27), by atoms.
+GPU_RESCALE_NOW = {
+    "2,661": "long_runs/cuda_h100/cost_tip3p-3nm.json",
+    "21,384": "long_runs/cuda_h100/cost_tip3p-6nm.json",
+    "72,279": "long_runs/cuda_h100/cost_tip3p-9nm.json",
+    "23,558 (dhfr)": "long_runs/cuda_h100/cost_dhfr_2fs.json",
+}
+
+
 def rescale_gpu_cost(gpu: dict) -> str:
-    """Render docs/platforms.md's sentence on the package's RattleRescaleIntegrator on an H100."""
+    """Render docs/platforms.md's sentences on the package's RattleRescaleIntegrator on an H100."""
+    now, now_sources = [], []
+    for atoms, path in GPU_RESCALE_NOW.items():
+        data, source = load(path)
+        now_sources.append(source)
+        rows = {row["name"]: row for row in data["rows"]}
+        rattle = rows[RATTLE]["ms_per_step"]
+        every = rows[RESCALE]["ms_per_step"] / rattle
+        tenth = rows["RATTLE + rescaling every 10 steps"]["ms_per_step"] / rattle
+        now.append(f"{every:.2f}× ({tenth:.2f}× every 10th step) at {atoms} atoms")
     rows = gpu["rescale_rows"]
     sources = gpu["sources"][-2:]
     cells = []
@@ -494,8 +512,10 @@ def rescale_gpu_cost(gpu: dict) -> str:
         ratio, ms = row["ratio_per_evaluation"], row["ms_per_step"]
         cells.append(f"{ratio:.2f}× at {atoms} atoms ({ms:.3f} against {rattle_ms:.3f} ms)")
     return (
-        f"The package's `RattleRescaleIntegrator` (5 sums and the energy per step) measured {cells[0]} and "
-        f"{cells[1]} RATTLE's step in `alphaprk bench cost --platform CUDA --precision mixed` "
+        f"The package's `RattleRescaleIntegrator` that sums the kinetic energy alone per step measured "
+        f"{', '.join(now)} RATTLE's step in `alphaprk bench cost --platform CUDA --precision mixed` "
+        f"({_days(now_sources)}; {_files(now_sources)}; [long runs](long_runs.md#cost-on-a-gpu)). The "
+        f"program before it (5 sums and the energy per step) measured {cells[0]} and {cells[1]} "
         f"({_days(sources)}; {_files(sources)})."
     )
 

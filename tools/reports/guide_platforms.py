@@ -177,8 +177,8 @@ def rescale_cost_now() -> str:
         "was set is checked once per `step()` call. `alphaprk bench cost`, each line one run against "
         f"RATTLE in that run ({sources[0].date}, {sources[0].machine}): "
         + "; ".join(parts)
-        + f". Data: {files_of(sources)}. Not yet measured on a GPU; the H100 figures below are of the "
-        "program of 2026-11-26, which summed the momentum every step."
+        + f". Data: {files_of(sources)}. On an H100 this program is measured at the end of this "
+        "section; the table just below is of what each part could cost, measured on 2026-11-26."
     )
 
 
