@@ -11,7 +11,10 @@ that integrator, ``VerletIntegrator``, and the package's integrators named on th
 command line, all at the same step and constraint tolerance, and prints ns/day and
 each one's step time against ``LangevinMiddleIntegrator``'s and ``VerletIntegrator``'s.
 The package's integrators run without the ``CMMotionRemover`` (an NVE run removes it;
-OpenMM's benchmark keeps it, as the Langevin and Verlet rows here do).
+OpenMM's benchmark keeps it, as the Langevin and Verlet rows here do), each after
+``check_context`` as the package's driver calls it (without it, RATTLE + rescaling does not
+know the box is periodic and sums the rigid-body motion every step: the 2026-11-27 H100
+measurement, made so, cost 3.5x RATTLE's step).
 
 Example (CUDA)::
 
@@ -34,6 +37,7 @@ import openmm as mm
 import openmm.app as app
 import openmm.unit as unit
 
+from openmm_alphaprk.integrators.restore import counted_force_evaluations
 from openmm_alphaprk.runs.integrator_names import label, make_integrator
 
 PDB = "5dfr_solv-cube_equil.pdb.gz"
@@ -80,6 +84,14 @@ def _integrators(names: list[str], timestep_ps: float) -> dict[str, tuple[mm.Int
     return rows
 
 
+def _counts(integrator: mm.Integrator) -> tuple[float, float]:
+    """Force evaluations and host synchronisations counted so far (NaN for OpenMM's integrators)."""
+    evaluations = counted_force_evaluations(integrator)
+    if evaluations is None:
+        return float("nan"), float("nan")
+    return float(evaluations), integrator.getGlobalVariableByName("host_syncs")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--platform", default="CUDA")
@@ -100,6 +112,8 @@ def main(argv: list[str] | None = None) -> int:
     contexts = {}
     for name, (integrator, as_benchmark) in rows.items():
         context = mm.Context(system if as_benchmark else nve_system, integrator, platform, properties)
+        if hasattr(integrator, "check_context"):  # the package's: periodic box, platform (as the driver does)
+            integrator.check_context(context)
         context.setPositions(positions)
         if not contexts:  # OpenMM's benchmark: velocities at 300 K (no minimization for this test)
             context.setVelocitiesToTemperature(300 * unit.kelvin, 2024)
@@ -113,6 +127,7 @@ def main(argv: list[str] | None = None) -> int:
         file=sys.stderr,
         flush=True,
     )
+    counted = {name: _counts(integrator) for name, (integrator, _) in rows.items()}
     times: dict[str, list[float]] = {name: [] for name in rows}
     for _ in range(args.rounds):
         for name, (integrator, _) in rows.items():
@@ -123,6 +138,11 @@ def main(argv: list[str] | None = None) -> int:
             context.getState(getEnergy=True)
             times[name].append((time.perf_counter() - begin) / args.steps * 1e3)
     medians = {name: statistics.median(values) for name, values in times.items()}
+    timed = args.steps * args.rounds
+    per_step = {
+        name: [(after - before) / timed for after, before in zip(_counts(integrator), counted[name])]
+        for name, (integrator, _) in rows.items()
+    }
     langevin, verlet = medians["LangevinMiddleIntegrator"], medians[label("verlet")]
     precision = f" ({args.precision})" if args.precision else ""
     header = (
@@ -133,11 +153,18 @@ def main(argv: list[str] | None = None) -> int:
         "each between two getState(energy=True)"
     )
     print(header)
-    print(f"{'integrator':<28} {'ms/step':>8} {'ns/day':>8} {'vs Langevin':>11} {'vs Verlet':>9}")
+    print(
+        f"{'integrator':<34} {'ms/step':>8} {'ns/day':>8} {'vs Langevin':>11} {'vs Verlet':>9} "
+        f"{'evals/step':>10} {'syncs/step':>10}"
+    )
     result = []
     for name, ms in medians.items():
         ns_day = args.timestep * 1e-6 * 86400.0 / (ms * 1e-3)
-        print(f"{name:<28} {ms:>8.3f} {ns_day:>8.0f} {ms / langevin:>11.2f} {ms / verlet:>9.2f}")
+        evaluations, syncs = per_step[name]
+        print(
+            f"{name:<34} {ms:>8.3f} {ns_day:>8.0f} {ms / langevin:>11.2f} {ms / verlet:>9.2f} "
+            f"{evaluations:>10.2f} {syncs:>10.2f}"
+        )
         result.append(
             {
                 "integrator": name,
@@ -145,6 +172,8 @@ def main(argv: list[str] | None = None) -> int:
                 "ns_per_day": ns_day,
                 "ratio_to_langevin_middle": ms / langevin,
                 "ratio_to_verlet": ms / verlet,
+                "force_evaluations_per_step": per_step[name][0],
+                "host_syncs_per_step": per_step[name][1],
             }
         )
     if args.json:
