@@ -40,7 +40,7 @@ from .pieces import (
     check_context,
 )
 from .rattle import RattleIntegrator
-from .rescale import RattleRescaleIntegrator, VelocityRescaleError
+from .rescale import RattleRescaleIntegrator, UncheckedContextWarning, VelocityRescaleError
 from .restore import (
     PACKAGE_INTEGRATORS,
     counted_force_evaluations,
@@ -60,6 +60,7 @@ __all__ = [
     "RattleRescaleIntegrator",
     "SystemSizeError",
     "TimestepUnitWarning",
+    "UncheckedContextWarning",
     "VelocityRescaleError",
     "check_context",
     "restore_integrator",
