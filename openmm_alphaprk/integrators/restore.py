@@ -10,12 +10,18 @@ from .energy_mode import AlphaRattleEnergyIntegrator
 from .pieces import _StepProgram
 from .rattle import RattleIntegrator
 from .rescale import RattleRescaleIntegrator
+from .splitting import SplittingRattleIntegrator
 from .variables import KIND_VARIABLE, REFERENCE_ENERGY
 
 #: This package's integrator classes (the energy mode's class is an AlphaRattleIntegrator):
 #: ``isinstance(integrator, PACKAGE_INTEGRATORS)`` tells an integrator that counts its force
 #: evaluations from one that does not (``openmm.VerletIntegrator``).
-PACKAGE_INTEGRATORS = (RattleIntegrator, RattleRescaleIntegrator, AlphaRattleIntegrator)
+PACKAGE_INTEGRATORS = (
+    RattleIntegrator,
+    RattleRescaleIntegrator,
+    AlphaRattleIntegrator,
+    SplittingRattleIntegrator,
+)
 
 _CLASSES_BY_KIND: dict[int, type[_StepProgram]] = {cls._kind: cls for cls in PACKAGE_INTEGRATORS}
 
@@ -68,7 +74,7 @@ def force_evaluations_per_step(integrator: mm.Integrator) -> float:
 
 def restore_integrator(
     integrator: mm.Integrator,
-) -> RattleIntegrator | RattleRescaleIntegrator | AlphaRattleIntegrator:
+) -> RattleIntegrator | RattleRescaleIntegrator | AlphaRattleIntegrator | SplittingRattleIntegrator:
     """Give a deserialized or ``Context.getIntegrator()`` object its Python class back.
 
     ``XmlSerializer.deserialize`` and ``Context.getIntegrator`` return a plain
@@ -85,7 +91,8 @@ def restore_integrator(
     -------
     RattleIntegrator or RattleRescaleIntegrator or AlphaRattleIntegrator
         The same object, now an instance of :class:`~.rattle.RattleIntegrator`,
-        :class:`~.rescale.RattleRescaleIntegrator`, :class:`~.alpha_rattle.AlphaRattleIntegrator`
+        :class:`~.rescale.RattleRescaleIntegrator`, :class:`~.alpha_rattle.AlphaRattleIntegrator`,
+        :class:`~.splitting.SplittingRattleIntegrator`
         or (a program of the energy mode) :class:`~.energy_mode.AlphaRattleEnergyIntegrator`.
 
     Raises

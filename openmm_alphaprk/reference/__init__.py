@@ -27,6 +27,7 @@ from .problems import (
     to_openmm_system,
     water_cluster,
 )
+from .splitting import splitting_step
 from .step import (
     ConstrainedProblem,
     StepInfo,
@@ -58,6 +59,7 @@ __all__ = [
     "project_velocities",
     "rigid_diatomics",
     "solve_positions",
+    "splitting_step",
     "spherical_pendulum",
     "spherical_pendulum_start",
     "symplectic_form",
