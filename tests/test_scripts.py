@@ -133,8 +133,9 @@ def test_make_own_files_runs_where_parmed_is(tmp_path):
     }
 
 
-#: A stand-in for python3 in cuda_check.sh: benchmark commands are parsed by the package's own
-#: command lines (and their JSON written), pytest runs are recorded, anything else runs.
+#: A stand-in for python3 in cuda_check.sh: the package's command lines parse what it is given (and
+#: make the files it would make), the DHFR script's integrator names are the package's, pytest runs
+#: are recorded, a ``-c`` snippet runs.
 _STAND_IN = r"""
 import json, os, sys
 log = os.environ["STAND_IN_LOG"]
@@ -142,35 +143,42 @@ args = sys.argv[1:]
 def record(entry):
     with open(log, "a", encoding="utf-8") as handle:
         handle.write(json.dumps(entry) + "\n")
+def value(flag):
+    return args[args.index(flag) + 1]
 if args[:2] == ["-m", "pytest"]:
     record({"pytest": args[2:], "platforms": os.environ.get("ALPHAPRK_TEST_PLATFORMS")})
-elif args[0] == "-c" and "openmm_alphaprk.benchmarks." in args[1]:
-    name, rest = args[2], args[3:]
-    if name == "energy":
-        from openmm_alphaprk.benchmarks.energy import _parser
-        parsed = vars(_parser().parse_args(rest))
+elif args[:3] == ["-m", "openmm_alphaprk", "bench"]:
+    name, rest = args[3], args[4:]
+    if name == "long":
+        from openmm_alphaprk.benchmarks import long
+        parser = long._parser()
+        long._check_arguments(parser, parser.parse_args(rest))
+        os.makedirs(value("--output"), exist_ok=True)
     else:
-        import openmm_alphaprk.benchmarks.cost as cost
-        parsed = {}
-        def stop(*a, **k):
-            raise SystemExit(0)
-        cost.build_water_box = stop
-        try:
-            cost.main(rest)
-        except SystemExit as done:
-            if done.code:
-                raise
-        parsed = {"json": rest[rest.index("--json") + 1]}
+        from openmm_alphaprk.benchmarks import cost
+        cost._parser().parse_args(rest)
+        from openmm_alphaprk.runs.integrator_names import parse_integrator
+        names = rest[rest.index("--integrators") + 1 : rest.index("--json")]
+        [parse_integrator(n) for n in names]
+        with open(value("--json"), "w", encoding="utf-8") as handle:
+            handle.write("{}")
     record({"bench": name, "args": rest})
-    with open(parsed["json"], "w", encoding="utf-8") as handle:
+elif args and args[0].endswith("dhfr_openmm_settings.py"):
+    from openmm_alphaprk.runs.integrator_names import parse_integrator
+    names = args[args.index("--integrators") + 1 : args.index("--steps")]
+    [parse_integrator(n) for n in names]
+    record({"dhfr": names})
+    with open(value("--json"), "w", encoding="utf-8") as handle:
         handle.write("{}")
+elif args[0] == "-c":
+    exec(compile(args[1], "-c", "exec"))
 else:
-    exec(compile(args[1], "-c", "exec")) if args[0] == "-c" else sys.exit(f"unexpected {args}")
+    sys.exit(f"unexpected {args}")
 """
 
 
 def test_cuda_check_runs_its_commands_with_arguments_the_package_accepts(tmp_path):
-    """cuda_check.sh with stand-ins for nvidia-smi and python3: the CLI takes every command it gives."""
+    """cuda_check.sh with stand-ins for nvidia-smi and python3: the package takes every command it gives."""
     bin_dir, out, log = tmp_path / "bin", tmp_path / "out", tmp_path / "calls.jsonl"
     bin_dir.mkdir()
     (tmp_path / "stand_in.py").write_text(_STAND_IN, encoding="utf-8")
@@ -181,7 +189,15 @@ def test_cuda_check_runs_its_commands_with_arguments_the_package_accepts(tmp_pat
     for name, text in stand_ins.items():
         (bin_dir / name).write_text(text, encoding="utf-8")
         (bin_dir / name).chmod(stat.S_IRWXU)
-    env = {**os.environ, "PATH": f"{bin_dir}:{os.environ['PATH']}", "OUT": str(out), "STAND_IN_LOG": str(log)}
+    env = {
+        **os.environ,
+        "PATH": f"{bin_dir}:{os.environ['PATH']}",
+        "OUT": str(out),
+        "WORK": str(tmp_path / "work"),
+        "STAND_IN_LOG": str(log),
+        "PYTHONPATH": str(ROOT),
+    }
+    (tmp_path / "work").mkdir()
     result = subprocess.run(
         ["bash", str(SCRIPTS / "cuda_check.sh")],
         cwd=ROOT,
@@ -193,25 +209,17 @@ def test_cuda_check_runs_its_commands_with_arguments_the_package_accepts(tmp_pat
     )
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
     calls = [json.loads(line) for line in log.read_text(encoding="utf-8").splitlines()]
-    assert [c.get("bench") for c in calls if "bench" in c] == [
-        "energy",
-        "energy",
-        "cost",
-        "cost",
-        "cost",
-        "cost",
-    ]
+    benches = [c["bench"] for c in calls if "bench" in c]
+    # the long runs, mixed precision, one process; its report; cost on three boxes and dhfr
+    assert benches == ["long", "long", "cost", "cost", "cost", "cost"]
+    long_run, report = [c["args"] for c in calls if c.get("bench") == "long"]
+    assert "--report" in report and "--report" not in long_run
+    assert long_run[long_run.index("--precision") + 1] == "mixed"
+    assert "rattle+rescale@10" in long_run and "energy4" in long_run
     (tests,) = [c for c in calls if "pytest" in c]
     assert tests["platforms"] == "CUDA:mixed,CUDA:single"
     assert all((ROOT / arg).is_file() for arg in tests["pytest"] if arg.startswith("tests/"))
-    assert {p.name for p in out.iterdir()} == {
-        "log.txt",
-        "cuda_tests.log",
-        "energy_tip3p-3nm.json",
-        "energy_villin.json",
-        "cost_3.json",
-        "cost_6.json",
-        "cost_9.json",
-        "cost_6_single.json",
-    }
+    assert [c["dhfr"] for c in calls if "dhfr" in c] == [["rattle", "rattle+rescale", "rattle+rescale@10",
+                                                         "rattle4+rescale"]]  # fmt: skip
+    assert {p.name for p in out.iterdir()} == {"log.txt", "long.tar.gz", "cost.tar.gz"}
     assert "done in" in (out / "log.txt").read_text(encoding="utf-8")
