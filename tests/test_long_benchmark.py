@@ -46,6 +46,9 @@ def test_rows_run_their_lengths_from_one_start_and_are_measured_from_their_files
     assert rows["rattle"]["rms_residual"] == pytest.approx(np.sqrt(np.mean(residual**2)), rel=1e-12)
     assert rows["rattle"]["max_abs_residual"] == pytest.approx(np.max(np.abs(residual)), rel=1e-12)
     assert rows["rattle+rescale"]["rms_residual"] < 1e-6 < rows["rattle"]["rms_residual"]
+    # the carried momentum against the state's, at the row's last step (the cluster's P is zero)
+    assert rows["rattle+rescale"]["carried_momentum_error"] < 1e-6
+    assert np.isnan(rows["rattle"]["carried_momentum_error"])
     assert rows["verlet"]["time_ratio_to_verlet"] == 1.0
     for row in rows.values():  # ns/day from ms/step and the 2 fs step
         assert row["ns_per_day"] == pytest.approx(

@@ -33,9 +33,11 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
+import openmm.unit as unit
 
 from .._units import InputError
-from ..observables import block_drift, degrees_of_freedom, residual_windows, rms
+from ..integrators import RattleRescaleIntegrator
+from ..observables import block_drift, degrees_of_freedom, masses, residual_windows, rms
 from ..runs import RunFailedError, RunInterrupted, RunOptions, read_energies, run_nve, rundir
 from ..runs.integrator_names import label, parse_integrator
 from ..systems import PreparedSystem, list_systems, prepare_system
@@ -45,6 +47,8 @@ from ..systems.arguments import add_file_arguments, system_to_prepare, unknown_s
 LONG_INTEGRATORS = ("verlet", "rattle", "rattle+rescale", "alpha4=0", "rattle4+rescale", "energy4")
 #: Where each row's speed is kept across calls, in its run directory (a resumed run's calls add up).
 TIMING_FILE = "bench_timing.json"
+#: Where a rescaling row's carried momentum is compared with the state's, in its run directory.
+MOMENTUM_FILE = "carried_momentum.csv"
 #: What the table's columns are, printed under it.
 TABLE_NOTE = (
     "E_ref = total energy of the start state. drift/DOF: slope of a least-squares line through the means "
@@ -85,7 +89,45 @@ class LongRow:
     time_ratio_to_verlet: float = float("nan")
     timed_steps: int = 0
     controller: dict = field(default_factory=dict)
+    carried_momentum_error: float = float("nan")
     failure: str = ""
+
+
+class CarriedMomentumReporter:
+    """An OpenMM reporter: |P − P_carried| of RATTLE + rescaling, the state's momentum against its program's.
+
+    In a periodic box the rescaling carries the total momentum P from when E_ref was taken
+    (RATTLE keeps it, and PME's reciprocal-space forces sum to round-off, not zero). Every
+    ``interval`` steps, and at ``last_step``, this writes the step, |P| and |P − P_carried|
+    (amu nm/ps) to ``path`` as the run goes; integrators without a carried momentum get no rows.
+    """
+
+    def __init__(self, path: Path, interval: int, last_step: int) -> None:
+        self._path = Path(path)
+        self._interval = interval
+        self._last_step = last_step
+        self._masses: np.ndarray | None = None
+
+    def describeNextReport(self, simulation) -> dict:
+        steps = self._interval - simulation.currentStep % self._interval
+        if simulation.currentStep < self._last_step:
+            steps = min(steps, self._last_step - simulation.currentStep)
+        return {"steps": steps, "periodic": None, "include": ["velocities"]}
+
+    def report(self, simulation, state) -> None:
+        integrator = simulation.integrator
+        if not isinstance(integrator, RattleRescaleIntegrator):
+            return
+        if self._masses is None:  # lazy set-up on the first report
+            self._masses = masses(simulation.system)
+            if not self._path.is_file():
+                self._path.write_text("step,P (amu nm/ps),|P - P_carried| (amu nm/ps)\n", encoding="utf-8")
+        velocities = state.getVelocities(asNumpy=True).value_in_unit(unit.nanometers / unit.picoseconds)
+        actual = (self._masses[:, None] * velocities).sum(axis=0)
+        carried = np.array([integrator.getGlobalVariableByName(f"momentum_{axis}") for axis in "xyz"])
+        with self._path.open("a", encoding="utf-8") as handle:
+            change = np.linalg.norm(actual - carried)
+            handle.write(f"{simulation.currentStep},{np.linalg.norm(actual):.9g},{change:.9g}\n")
 
 
 def one_evaluation(name: str) -> bool:
@@ -131,7 +173,9 @@ def run_rows(
     failures = {}
     for name in names:
         try:
-            summary = run_nve(prepared, name, folder / rundir.folder_name(name), options, steps=steps[name])
+            run = folder / rundir.folder_name(name)
+            momentum = CarriedMomentumReporter(run / MOMENTUM_FILE, 20 * options.energy_interval, steps[name])
+            summary = run_nve(prepared, name, run, options, steps=steps[name], extra_reporters=[momentum])
         except RunFailedError as error:
             failures[name] = str(error)
             print(f"{name}: {error}", file=sys.stderr, flush=True)
@@ -194,6 +238,10 @@ def analyse_rows(
         _energy_statistics(row, times, residuals, dof, window_ps, blocks)
         _speed(row, _timing(run), timestep_ps)
         _summary_fields(row, run)
+        if (run / MOMENTUM_FILE).is_file():
+            momentum = np.loadtxt(run / MOMENTUM_FILE, delimiter=",", skiprows=1, ndmin=2)
+            if momentum.size:
+                row.carried_momentum_error = float(momentum[-1, 2])
         rows.append(row)
         traces[row.label] = (times, residuals)
     verlet = next(
@@ -473,6 +521,12 @@ def _one_system(name: str, args: argparse.Namespace, output: Path) -> tuple[dict
         if windows_against(rows, n, base)
     }
     note += _interval_note(args.integrators, args.energy_interval)
+    note += "".join(
+        f" {row.label}: |P - P_carried| = {row.carried_momentum_error:.2g} amu nm/ps after "
+        f"{row.simulated_ps:g} ps (the momentum its rescaling carries against the state's)."
+        for row in rows
+        if row.carried_momentum_error == row.carried_momentum_error
+    )
     text = (
         table
         + "\n\n"
