@@ -26,6 +26,7 @@ from openmm_alphaprk import (
     IncompatibleSystemError,
     RattleIntegrator,
     RattleRescaleIntegrator,
+    SplittingRattleIntegrator,
 )
 from openmm_alphaprk.integrators.energy_mode import EnergyHoldWarning
 from openmm_alphaprk.observables import energy_residuals
@@ -46,6 +47,12 @@ INTEGRATORS = {
     "alpha4=0.05:triple-jump": lambda: AlphaRattleIntegrator(H, 0.05, composition="triple-jump"),
     "alpha4=0.05, alpha on every stage": lambda: AlphaRattleIntegrator(H, 0.05, order=4, alpha_stages="all"),
     "alpha6=0": lambda: AlphaRattleIntegrator(H, 0.0, order=6),
+    # the explicit α-family: sub-steps of straight-line code, every force after its constraint step
+    "split=1/4": lambda: SplittingRattleIntegrator(H, alpha=0.25),
+    "split-me": lambda: SplittingRattleIntegrator(H),
+    "split3-bcss": lambda: SplittingRattleIntegrator(H, splitting="bcss3"),
+    "split-me+rescale": lambda: RattleRescaleIntegrator(H, splitting="me2"),
+    "split-me+rescale@2": lambda: RattleRescaleIntegrator(H, splitting="me2", rescale_interval=2),
     # the energy modes with α pinned to a point: their trials, restarts and midpoint
     # passes, with the controller's choices taken out of the comparison (a tolerance every
     # trial meets: a step that missed would choose between its α trial and the α = 0 step by

@@ -18,7 +18,12 @@ import pytest
 from conftest import REFERENCE, make_context, positions_of, velocities_of
 from test_step_programs_golden import describe
 
-from openmm_alphaprk import RattleIntegrator, SplittingRattleIntegrator, restore_integrator
+from openmm_alphaprk import (
+    RattleIntegrator,
+    RattleRescaleIntegrator,
+    SplittingRattleIntegrator,
+    restore_integrator,
+)
 from openmm_alphaprk.integrators.splittings import SPLITTINGS, Splitting, splitting, two_stage
 from openmm_alphaprk.observables import convergence_order
 from openmm_alphaprk.reference import (
@@ -34,6 +39,7 @@ from openmm_alphaprk.reference import (
     to_openmm_system,
     water_cluster,
 )
+from openmm_alphaprk.runs.integrator_names import label, make_integrator, parse_integrator
 
 T_END = 2.0
 COUNTS = (16, 32, 64)
@@ -51,6 +57,12 @@ PROGRAMS = {
     ),
     "SplittingRattleIntegrator(0.002, splitting='bcss3')": lambda: SplittingRattleIntegrator(
         0.002, splitting="bcss3"
+    ),
+    "RattleRescaleIntegrator(0.002, splitting='me2')": lambda: RattleRescaleIntegrator(
+        0.002, splitting="me2"
+    ),
+    "RattleRescaleIntegrator(0.002, splitting='me3', rescale_interval=10)": lambda: RattleRescaleIntegrator(
+        0.002, splitting="me3", rescale_interval=10
     ),
 }
 
@@ -277,6 +289,66 @@ def test_restored_from_xml_with_its_splitting():
         assert restored.splitting == SPLITTINGS[name]
     xml = mm.XmlSerializer.serialize(SplittingRattleIntegrator(0.002, alpha=0.3))
     assert restore_integrator(mm.XmlSerializer.deserialize(xml)).alpha == pytest.approx(0.3, abs=1e-15)
+
+
+# ------------------------------------------------------- after the rescaling
+@pytest.mark.parametrize("name", ["me2", "me3"])
+def test_the_rescaling_after_a_splitting_holds_the_energy_and_follows_its_trajectory(name):
+    """Every step: H = E_ref; every 10th step: the steps between are the splitting's own."""
+    problem, x0, v0 = water_cluster(8, spacing=0.3, seed=5)
+    system = to_openmm_system(problem)
+    rescaled = RattleRescaleIntegrator(0.002, splitting=name)
+    every_tenth = RattleRescaleIntegrator(0.002, splitting=name, rescale_interval=10)
+    plain = SplittingRattleIntegrator(0.002, splitting=name)
+    contexts = [
+        make_context(system, i, x0.reshape(-1, 3), v0.reshape(-1, 3)) for i in (rescaled, every_tenth, plain)
+    ]
+    for integrator, context in zip((rescaled, every_tenth), contexts):
+        integrator.check_context(context)
+    for integrator in (rescaled, every_tenth, plain):
+        integrator.step(9)
+    assert np.array_equal(positions_of(contexts[1]), positions_of(contexts[2]))
+    state = contexts[0].getState(getEnergy=True)
+    energy = (state.getKineticEnergy() + state.getPotentialEnergy()).value_in_unit(unit.kilojoules_per_mole)
+    reference = rescaled.reference_energy.value_in_unit(unit.kilojoules_per_mole)
+    assert abs(energy - reference) < 1e-6
+    assert rescaled.velocity_scale != 1.0
+    assert rescaled.force_evaluations_per_step == SPLITTINGS[name].stages
+    assert rescaled.splitting == SPLITTINGS[name]
+    assert repr(rescaled) == f"RattleRescaleIntegrator(timestep=0.002 ps, splitting={name!r})"
+    with pytest.raises(ValueError, match="not both"):
+        RattleRescaleIntegrator(0.002, order=4, splitting=name)
+
+
+# --------------------------------------------------------------- the names
+def test_the_vocabulary_names_the_splittings():
+    cases = {
+        "split=1/4": (SplittingRattleIntegrator, "rattle/2", "splitting α = 1/4"),
+        "split=0.3": (SplittingRattleIntegrator, "split=0.3", "splitting α = 0.3"),
+        "split-me": (SplittingRattleIntegrator, "me2", "splitting, minimum error (α = 0.3068)"),
+        "split-bcss": (SplittingRattleIntegrator, "bcss2", "splitting, BCSS (α = 0.2882)"),
+        "split3-me": (SplittingRattleIntegrator, "me3", "3-stage splitting, minimum error"),
+        "split3-bcss": (SplittingRattleIntegrator, "bcss3", "3-stage splitting, BCSS"),
+        "split-me+rescale": (
+            RattleRescaleIntegrator,
+            "me2",
+            "splitting, minimum error (α = 0.3068) + rescaling",
+        ),
+        "split3-bcss+rescale@10": (
+            RattleRescaleIntegrator,
+            "bcss3",
+            "3-stage splitting, BCSS + rescaling every 10 steps",
+        ),
+    }
+    for name, (cls, chosen, text) in cases.items():
+        integrator = make_integrator(name, 0.002)
+        assert type(integrator) is cls, name
+        assert integrator.splitting.name == chosen, name
+        assert label(name) == text
+    assert make_integrator("split3-bcss+rescale@10", 0.002).rescale_interval == 10
+    assert parse_integrator("split=1/4").alpha == 0.25
+    with pytest.raises(ValueError, match="split-me"):
+        parse_integrator("split-nothing")
 
 
 # --------------------------------------------------------- stored programs

@@ -52,6 +52,9 @@ from ..nve import momentum_breaking_forces
 from .compositions import Composition, requested_composition
 from .pieces import DEFAULT_CONSTRAINT_TOLERANCE, _StepProgram
 from .reference_energy import _ReferenceEnergy, energy_tolerance_setting
+from .splitting import add_splitting_record, add_splitting_stages, recorded_splitting
+from .splittings import Splitting
+from .splittings import splitting as named_splitting
 from .variables import RATTLE_RESIDUAL, RESCALE_HALTED, STEPS_TAKEN, VELOCITY_SCALE
 
 _AXES = {"x": "vector(1,0,0)", "y": "vector(0,1,0)", "z": "vector(0,0,1)"}
@@ -200,6 +203,11 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
     composition : str or Composition, optional
         A composition by name (:data:`~.compositions.COMPOSITIONS`) or a
         :class:`~.compositions.Composition`, instead of ``order``.
+    splitting : str or Splitting, optional
+        Instead of RATTLE, a kick-drift splitting with constraints (:mod:`~.splittings`,
+        by name or a :class:`~.splittings.Splitting`; ``"me2"``: the minimum-error
+        two-stage member of the explicit α-family): s force evaluations per step for s
+        stages, the rescaling after the last; not with ``order`` or ``composition``.
     rescale_interval : int, default 1
         N: rescale after every N-th step only. The steps between are plain RATTLE (or
         the composition): no energy read and no sum, H drifting from E_ref as RATTLE's
@@ -275,9 +283,15 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         order: int | None = None,
         composition: str | Composition | None = None,
         rescale_interval: int = 1,
+        splitting: str | Splitting | None = None,
     ) -> None:
         tolerance = energy_tolerance_setting(energy_tolerance)
         self._composition = requested_composition(order, composition)
+        if splitting is not None and self._composition is not None:
+            raise InputError("give a composition (order, composition) or a splitting, not both.")
+        self._splitting = named_splitting(splitting) if splitting is not None else None
+        #: the sub-steps of a step, where there are several (a composition or a splitting)
+        self._stages = self._composition or self._splitting
         self._rescale_interval = rescale_interval_setting(rescale_interval)
         super().__init__(timestep, constraint_tolerance)
         self._add_reference_energy_variables(tolerance)
@@ -286,6 +300,8 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
             self._add_interval_variables(self._rescale_interval)
         if self._composition is not None:
             self._add_composition_record(self._composition)
+        if self._splitting is not None:
+            add_splitting_record(self, self._splitting)
         self._add_step(self._build_program, update_context_state=False, halted=RESCALE_HALTED)
 
     def _add_rescale_variables(self) -> None:
@@ -309,7 +325,7 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         self.addGlobalVariable(VELOCITY_SCALE, 1)
         for name in ("fstart", "rigid_velocity", *(f"axis_{axis}" for axis in _AXES)):
             self.addPerDofVariable(name, 0)
-        if self._composition is not None:
+        if self._stages is not None:
             for name in ("xstep", "vstep"):
                 self.addPerDofVariable(name, 0)
 
@@ -365,7 +381,7 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
 
     def _add_step_start(self, on_moved: Callable[[], None], **check: object) -> None:
         """F(x0) copied, then the reference check (and, for a composition, the step's start kept)."""
-        if self._composition is None:
+        if self._stages is None:
             # x0, v0 hold the last step's end (written at the end of the step): the start of
             # this one unless the state was set, which the reference check's block copies
             self.addComputeGlobal("step_force_evaluations", "0")
@@ -378,7 +394,9 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
 
     def _add_rattle_step(self) -> None:
         """Add the RATTLE step from x0, v0 (F(x0) in ``fstart``), or the composition's stages."""
-        if self._composition is None:
+        if self._splitting is not None:
+            add_splitting_stages(self, self._splitting, first_force="fstart")
+        elif self._composition is None:
             self._add_position_solve("0.5*fstart")
             self._add_velocity_update("0.5*f")
         else:
@@ -394,7 +412,7 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         """
         self.beginIfBlock("rescale_count < rescale_interval - 0.5")
         self._add_rattle_step()
-        into = ("xend", "vend") if self._composition is not None else ("x0", "v0")
+        into = ("xend", "vend") if self._stages is not None else ("x0", "v0")
         self.addComputePerDof(into[0], "x")
         self.addComputePerDof(into[1], "v")
         self.endBlock()
@@ -407,7 +425,7 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         the forces' validity for OpenMM's analysis: the plain step's force evaluation then
         computes no energy for this read, which evaluates the energy alone, here only.
         """
-        if self._composition is None:
+        if self._stages is None:
             self._add_moved_start()
         else:
             self._add_rigid_body_measurement()
@@ -447,7 +465,7 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         self._add_end_state_record(
             "potential_energy + rigid_kinetic_energy + scale_squared*internal;"
             "internal = kinetic_energy - rigid_kinetic_energy",
-            into=("xend", "vend") if self._composition is not None else ("x0", "v0"),
+            into=("xend", "vend") if self._stages is not None else ("x0", "v0"),
         )
         self.addComputeGlobal(
             "sum_rattle_residual_squared", f"sum_rattle_residual_squared + {RATTLE_RESIDUAL}^2"
@@ -548,8 +566,8 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         :mod:`~.pieces`).
         """
         self.beginIfBlock("no_factor > 0.5")
-        self.addComputePerDof("x", "x0" if self._composition is None else "xstep")
-        self.addComputePerDof("v", "v0" if self._composition is None else "vstep")
+        self.addComputePerDof("x", "x0" if self._stages is None else "xstep")
+        self.addComputePerDof("v", "v0" if self._stages is None else "vstep")
         self.addComputeGlobal(RESCALE_HALTED, "1")
         self.addComputeGlobal(STEPS_TAKEN, f"{STEPS_TAKEN} - 1")  # _add_end_step counts it again
         self.endBlock()
@@ -644,6 +662,18 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
     def rattle_residual(self) -> unit.Quantity:
         """H − E_ref after the last RATTLE step, before the scaling: the energy error it removed."""
         return self.getGlobalVariableByName(RATTLE_RESIDUAL) * unit.kilojoules_per_mole
+
+    def __repr__(self) -> str:
+        text = super().__repr__()
+        chosen = self.splitting
+        return text if chosen is None else f"{text[:-1]}, splitting={chosen.name!r})"
+
+    @property
+    def splitting(self) -> Splitting | None:
+        """The splitting the rescaling follows (None: RATTLE or a composition); read back when restored."""
+        if "_splitting" in vars(self):
+            return self._splitting
+        return recorded_splitting(self)
 
     @property
     def rescale_interval(self) -> int:

@@ -37,6 +37,19 @@ Names (:data:`VOCABULARY`, in the order ``--help`` lists them):
     ``rattle6+rescale`` on a named composition of
     :data:`~openmm_alphaprk.integrators.compositions.COMPOSITIONS` instead of the
     order's default (``energy4:triple-jump``, ``alpha4=0:suzuki5``).
+``split=<number>``
+    :class:`~openmm_alphaprk.SplittingRattleIntegrator` with that α: the explicit
+    α-family, kick((½−α)h) · drift(h/2) · kick(2αh) · drift(h/2) · kick((½−α)h) with
+    constraints (two force evaluations per step, no iteration); ``split=1/4`` is RATTLE at h/2.
+``split-me``, ``split-bcss``
+    The minimum-error two-stage member (α = 0.306817, McLachlan) and Blanes, Casas &
+    Sanz-Serna's (α = 0.288219).
+``split3-me``, ``split3-bcss``
+    The three-stage splittings (minimum error; Blanes, Casas & Sanz-Serna): three force
+    evaluations per step.
+``split-me+rescale``, ``split-bcss+rescale``, ``split3-me+rescale``, ``split3-bcss+rescale``
+    :class:`~openmm_alphaprk.RattleRescaleIntegrator` after that splitting
+    (``splitting=``); ``@N`` rescales every N-th step only (``split-me+rescale@10``).
 ``verlet``
     ``openmm.VerletIntegrator`` (leapfrog). Its ``State`` kinetic energy is a
     half-step average, so its H − E_ref is not comparable step for step with the
@@ -62,6 +75,7 @@ from ..integrators import (
     IncompatibleSystemError,
     RattleIntegrator,
     RattleRescaleIntegrator,
+    SplittingRattleIntegrator,
 )
 from ..integrators.compositions import COMPOSITIONS
 from ..observables import VERLET_IS_LEAPFROG
@@ -157,11 +171,54 @@ VOCABULARY = (
         "of RATTLE steps, 9 evaluations/step)",
     ),
     IntegratorName("energy6", "energy", 6, "the energy mode on the default sixth-order composition"),
+    IntegratorName(
+        "split=<number>",
+        "split",
+        2,
+        "SplittingRattleIntegrator with that alpha: the explicit alpha-family, kick((1/2-alpha)h) "
+        "drift(h/2) kick(2 alpha h) drift(h/2) kick((1/2-alpha)h) with constraints (2 evaluations/step, "
+        "no iteration; split=1/4 is RATTLE at h/2)",
+    ),
+    IntegratorName(
+        "split-me",
+        "split",
+        2,
+        "the minimum-error two-stage splitting (alpha = 0.306817, McLachlan 1995; 2 evaluations/step)",
+    ),
+    IntegratorName(
+        "split-bcss",
+        "split",
+        2,
+        "Blanes, Casas & Sanz-Serna's two-stage splitting (alpha = 0.288219; 2 evaluations/step)",
+    ),
+    IntegratorName(
+        "split3-me",
+        "split",
+        2,
+        "the minimum-error three-stage splitting (Predescu et al. 2012; 3 evaluations/step)",
+    ),
+    IntegratorName(
+        "split3-bcss", "split", 2, "Blanes, Casas & Sanz-Serna's three-stage splitting (3 evaluations/step)"
+    ),
+    IntegratorName(
+        "split-me+rescale",
+        "rescale",
+        2,
+        "RattleRescaleIntegrator(splitting='me2'): the minimum-error splitting, then the rescaling "
+        "(also split-bcss+rescale, split3-me+rescale, split3-bcss+rescale; @N every N-th step)",
+    ),
     IntegratorName("verlet", "verlet", 2, VERLET_IS_LEAPFROG),
 )
 _BY_NAME = {
     entry.name.removesuffix("=<number>"): entry for entry in VOCABULARY if not entry.name.endswith("@<N>")
 }
+#: The named splittings of the vocabulary (:data:`~openmm_alphaprk.integrators.splittings.SPLITTINGS`).
+SPLITTING_NAMES = {"split-me": "me2", "split-bcss": "bcss2", "split3-me": "me3", "split3-bcss": "bcss3"}
+for _name, _chosen in SPLITTING_NAMES.items():
+    if f"{_name}+rescale" not in _BY_NAME:
+        _BY_NAME[f"{_name}+rescale"] = IntegratorName(
+            f"{_name}+rescale", "rescale", 2, f"RattleRescaleIntegrator(splitting={_chosen!r})"
+        )
 
 #: The names, in the vocabulary's order (``rattle, alpha=<number>, …, verlet``), for ``--help``.
 INTEGRATOR_NAMES = ", ".join(entry.name for entry in VOCABULARY)
@@ -183,6 +240,7 @@ class IntegratorSpec:
     order: int = 2
     composition: str | None = None
     rescale_interval: int = 1
+    splitting: str | None = None
 
     @property
     def name(self) -> str:
@@ -245,6 +303,7 @@ def parse_integrator(text: str | IntegratorSpec) -> IntegratorSpec:
             f"{text!r}: only rattle+rescale, rattle4+rescale and rattle6+rescale take a rescaling "
             "interval @N (e.g. rattle+rescale@10)."
         )
+    chosen_splitting = SPLITTING_NAMES.get(prefix.removesuffix("+rescale"))
     if interval is not None:
         canonical = cleaned if interval == 1 else f"{cleaned}@{interval}"
         return IntegratorSpec(
@@ -253,9 +312,16 @@ def parse_integrator(text: str | IntegratorSpec) -> IntegratorSpec:
             order=entry.order,
             composition=composition_name,
             rescale_interval=interval,
+            splitting=chosen_splitting,
         )
     if entry is not None and not entry.takes_number and not equals:
-        return IntegratorSpec(entry.kind, text=cleaned, order=entry.order, composition=composition_name)
+        return IntegratorSpec(
+            entry.kind,
+            text=cleaned,
+            order=entry.order,
+            composition=composition_name,
+            splitting=chosen_splitting,
+        )
     if entry is not None and entry.takes_number and re.fullmatch(r"[-+0-9.e/]+", number):
         try:
             value = float(Fraction(number))
@@ -269,7 +335,8 @@ def parse_integrator(text: str | IntegratorSpec) -> IntegratorSpec:
         f"unknown integrator {text!r}; use one of: rattle, rattle+rescale, verlet, energy, energy4, "
         "alpha=<number>, alpha4=<number> (e.g. alpha=0.5, alpha=1/6, alpha4=0), energy6, alpha6=<number>, "
         "rattle4+rescale, rattle6+rescale; the composed ones optionally on a named composition "
-        "(energy4:triple-jump); the rescaling ones optionally every N-th step (rattle+rescale@10)."
+        "(energy4:triple-jump); the splittings split=<number>, split-me, split-bcss, split3-me, "
+        "split3-bcss (and each +rescale); the rescaling ones optionally every N-th step (rattle+rescale@10)."
     )
 
 
@@ -297,6 +364,10 @@ _LABELS = {
     "verlet": "VerletIntegrator",
     "energy": "α-RATTLE energy mode",
     "energy4": "α-RATTLE-4 energy mode",
+    "split-me": "splitting, minimum error (α = 0.3068)",
+    "split-bcss": "splitting, BCSS (α = 0.2882)",
+    "split3-me": "3-stage splitting, minimum error",
+    "split3-bcss": "3-stage splitting, BCSS",
 }
 
 
@@ -309,6 +380,16 @@ def label(spec: str | IntegratorSpec) -> str:
     mode``, ``α-RATTLE-4 energy mode``); ``x`` is written as given (fractions kept).
     """
     spec = parse_integrator(spec)
+    every = f" every {spec.rescale_interval} steps" if spec.rescale_interval > 1 else ""
+    if spec.splitting is not None and spec.kind == "rescale":
+        named = spec.name.partition("+rescale")[0]
+        return f"{_LABELS[named]} + rescaling{every}"
+    if spec.kind == "split":
+        return (
+            _LABELS[spec.name]
+            if spec.splitting is not None
+            else f"splitting α = {spec.name.partition('=')[2]}"
+        )
     family = "α-RATTLE" if spec.order == 2 else f"α-RATTLE-{spec.order}"
     if spec.kind == "rescale" and spec.order != 2:
         family = f"RATTLE-{spec.order}"
@@ -347,6 +428,14 @@ def make_integrator(
             order=spec.order,
             composition=spec.composition,
             rescale_interval=spec.rescale_interval,
+            splitting=spec.splitting,
+        )
+    if spec.kind == "split":
+        return SplittingRattleIntegrator(
+            timestep,
+            alpha=spec.alpha if spec.splitting is None else None,
+            constraint_tolerance=constraint_tolerance,
+            splitting=spec.splitting,
         )
     if spec.kind == "alpha":
         return AlphaRattleIntegrator(
@@ -421,7 +510,7 @@ def check_compatible(
         f"use verlet (openmm.VerletIntegrator, any platform): `alphaprk run {shown} verlet` or "
         f"`alphaprk compare {shown} -i verlet`"
     )
-    if spec.kind in ("rattle", "rescale") or (spec.kind == "alpha" and spec.alpha == 0.0):
+    if spec.kind in ("rattle", "rescale", "split") or (spec.kind == "alpha" and spec.alpha == 0.0):
         reason = (
             f"on the {platform} platform OpenMM places virtual sites only at the end of a CustomIntegrator "
             "step, so forces inside the step would see stale sites. Instead run it with --platform CUDA, "
