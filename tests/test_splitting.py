@@ -351,6 +351,32 @@ def test_the_vocabulary_names_the_splittings():
         parse_integrator("split-nothing")
 
 
+# ------------------------------------------------------- the survey script
+def test_the_survey_script_runs(tmp_path):
+    """tools/scripts/splitting_survey.py (docs/splitting.md's numbers) on the water cluster, 2 steps."""
+    import json
+    import subprocess
+    import sys
+
+    root = Path(__file__).resolve().parents[1]
+    out = tmp_path / "survey.json"
+    result = subprocess.run(
+        [sys.executable, str(root / "tools" / "scripts" / "splitting_survey.py"), "--system", "water-cluster"]
+        + ["--horizons", "1", "--steps", "2", "--rows", "RATTLE at h/2", "split-me", "--json", str(out)],
+        cwd=root,
+        capture_output=True,
+        text=True,
+        encoding="utf-8",
+        timeout=300,
+        env={**os.environ, "OPENMM_CPU_THREADS": "1", "PYTHONUTF8": "1"},
+    )
+    assert result.returncode == 0, result.stderr[-3000:]
+    rows = json.loads(out.read_text(encoding="utf-8"))["rows"]
+    assert [row["row"] for row in rows] == ["RATTLE at h/2", "split-me"]
+    assert [row["evaluations"] for row in rows] == [2.0, 2.0]
+    assert all(len(row["position_rms"]) == 1 for row in rows)
+
+
 # --------------------------------------------------------- stored programs
 def _descriptions() -> str:
     return "".join(f"=== {name}\n{describe(make())}\n" for name, make in PROGRAMS.items())

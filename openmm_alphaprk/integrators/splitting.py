@@ -111,7 +111,8 @@ class SplittingRattleIntegrator(_StepProgram):
     symmetric, second order, the constraints and the momenta kept; s force evaluations per
     step for s stages (the last kick's force is the next step's first), no iteration.
     Velocities are at the full step. Its step program, as OpenMM runs it:
-    :meth:`program_listing`.
+    :meth:`program_listing`, and docs/step_programs.md; the family, its members and what
+    they measured: docs/splitting.md.
 
     α = ¼ is two RATTLE steps of h/2; the default, α = 0.306817, is the minimum-error
     two-stage splitting (McLachlan 1995), which on water and villin holds the energy 3-5×

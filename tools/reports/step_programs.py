@@ -18,6 +18,7 @@ from openmm_alphaprk import (
     AlphaRattleIntegrator,
     RattleIntegrator,
     RattleRescaleIntegrator,
+    SplittingRattleIntegrator,
 )
 
 PAGE = Path(__file__).resolve().parents[2] / "docs" / "step_programs.md"
@@ -33,6 +34,10 @@ PROGRAMS = {
     ),
     "AlphaRattleEnergyIntegrator(h)": lambda: AlphaRattleEnergyIntegrator(0.002),
     "AlphaRattleEnergyIntegrator(h, order=4)": lambda: AlphaRattleEnergyIntegrator(0.002, order=4),
+    "SplittingRattleIntegrator(h)": lambda: SplittingRattleIntegrator(0.002),
+    "SplittingRattleIntegrator(h, splitting='bcss3')": lambda: SplittingRattleIntegrator(
+        0.002, splitting="bcss3"
+    ),
 }
 
 
