@@ -216,6 +216,38 @@ def test_openmm_program_is_the_reference_step(name, make_problem, tolerance):
     assert integrator.force_evaluations == 10 * SPLITTINGS[name].stages
 
 
+@pytest.mark.parametrize("platform", ["Reference", "CPU"])
+@pytest.mark.parametrize("rescaled", [False, True], ids=["splitting", "rescaled"])
+@pytest.mark.parametrize("name", ["me2", "bcss3"])
+def test_openmm_counts_the_stages_force_evaluations_per_step(platform, rescaled, name):
+    """Counted by OpenMM (a PythonForce that counts its calls): s per step, the first one the last step's."""
+    problem, x0, v0 = water_cluster(3)
+    system = to_openmm_system(problem)
+    calls = [0]
+
+    def count(state):
+        calls[0] += 1
+        return 0.0, np.zeros((1, 3))
+
+    counter = mm.PythonForce(count)
+    counter.setParticles([0])
+    system.addForce(counter)
+    if rescaled:
+        integrator = RattleRescaleIntegrator(0.002, splitting=name)
+    else:
+        integrator = SplittingRattleIntegrator(0.002, splitting=name)
+    context = make_context(
+        system, integrator, x0.reshape(-1, 3), v0.reshape(-1, 3), mm.Platform.getPlatformByName(platform)
+    )
+    integrator.check_context(context)
+    integrator.step(2)  # the first step also evaluates the start
+    calls[0] = 0
+    integrator.step(10)
+    stages = SPLITTINGS[name].stages
+    assert calls[0] == 10 * stages
+    assert integrator.last_step_force_evaluations == stages
+
+
 @pytest.mark.parametrize("name", ["me2", "bcss3"])
 def test_openmm_program_is_second_order(name):
     problem, x0, v0 = rigid_diatomics()
@@ -349,6 +381,19 @@ def test_the_vocabulary_names_the_splittings():
     assert parse_integrator("split=1/4").alpha == 0.25
     with pytest.raises(ValueError, match="split-me"):
         parse_integrator("split-nothing")
+
+
+def test_the_documented_signature_is_the_real_one():
+    """docs/integrators.md gives SplittingRattleIntegrator's signature: the one ``inspect`` finds."""
+    import inspect
+
+    from test_docs import _documented_signature
+
+    real = inspect.signature(SplittingRattleIntegrator)
+    written = _documented_signature("SplittingRattleIntegrator")
+    assert [(p.name, p.kind, p.default) for p in written.parameters.values()] == [
+        (p.name, p.kind, p.default) for p in real.parameters.values()
+    ]
 
 
 # ------------------------------------------------------- the survey script
