@@ -3,6 +3,7 @@
 from .integrators import (
     AlphaRattleEnergyIntegrator,
     AlphaRattleIntegrator,
+    EnergyHoldWarning,
     IncompatibleSystemError,
     MidpointConvergenceError,
     RattleIntegrator,
@@ -21,6 +22,7 @@ from .start_blowup import StartBlowUpError
 __all__ = [
     "AlphaRattleEnergyIntegrator",
     "AlphaRattleIntegrator",
+    "EnergyHoldWarning",
     "IncompatibleSystemError",
     "MidpointConvergenceError",
     "NonSmoothForcesWarning",

@@ -386,8 +386,11 @@ def test_a_step_whose_trials_did_worse_than_alpha_zero_is_the_alpha_zero_step(so
         energy_tolerance=1e-9,
     )
     context = make_context(system, integrator, positions, velocities, REFERENCE)
-    with pytest.warns(EnergyHoldWarning, match="could not hold 1 of its 1 steps"):
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
         integrator.step(1)
+    # one α = 0 step is counted, not warned about: a few are normal where the energy is held
+    assert not [w for w in caught if issubclass(w.category, EnergyHoldWarning)]
     value = {
         name: integrator.getGlobalVariableByName(name)
         for name in (

@@ -34,7 +34,7 @@ Modules:
 """
 
 from .alpha_rattle import AlphaRattleIntegrator
-from .energy_mode import AlphaRattleEnergyIntegrator
+from .energy_mode import AlphaRattleEnergyIntegrator, EnergyHoldWarning
 from .pieces import (
     IncompatibleSystemError,
     MidpointConvergenceError,
@@ -58,6 +58,7 @@ __all__ = [
     "force_evaluations_per_step",
     "AlphaRattleEnergyIntegrator",
     "AlphaRattleIntegrator",
+    "EnergyHoldWarning",
     "IncompatibleSystemError",
     "MidpointConvergenceError",
     "RattleIntegrator",

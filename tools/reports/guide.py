@@ -394,8 +394,9 @@ def gpu_in_short(gpu: dict) -> str:
         f"On an H100 (CUDA mixed; 21k- and 72k-atom TIP3P boxes, {_days(gpu['sources'][:2])}) the "
         f"compositions cost what their RATTLE stages cost from 21k atoms on ({fixed}× RATTLE's time per "
         f"force evaluation for `alpha4=0` and `alpha6=0`, {rescale4}× for `rattle4+rescale`, {energy}× "
-        "for `energy4`), and `energy4` blows up on villin at 4 fs where `alpha4=0` and "
-        f"`rattle4+rescale` run ([compositions](compositions.md#on-a-gpu-cuda-on-an-h100); data: "
+        "for `energy4`), and the `energy4` of that day blew up on villin at 4 fs where `alpha4=0` and "
+        "`rattle4+rescale` ran (today's takes the α = 0 step where it cannot hold one: "
+        "[the energy mode](energy_mode.md)) ([compositions](compositions.md#on-a-gpu-cuda-on-an-h100); data: "
         f"{_files(gpu['sources'][:2])})."
     )
 
@@ -450,9 +451,10 @@ def what_it_achieves(a2: Accuracy, gpu: dict) -> str:
             f"equal force evaluations ({', '.join(k)}), and {tracks}× above `rattle4+rescale`'s. α* perturbs "
             "each step by about as much as the composition's own error.",
             f"- **Cost on a GPU**: on an H100 (CUDA mixed, {_days(gpu['sources'][:2])}) `energy4` costs "
-            f"{energy_gpu}× RATTLE's time per force evaluation from 21k atoms on, and it blows up on villin "
-            "at 4 fs where `alpha4=0` and `rattle4+rescale` run "
-            "([compositions](compositions.md#on-a-gpu-cuda-on-an-h100)).",
+            f"{energy_gpu}× RATTLE's time per force evaluation from 21k atoms on, and the program of that "
+            "day blew up on villin at 4 fs where `alpha4=0` and `rattle4+rescale` ran "
+            "([compositions](compositions.md#on-a-gpu-cuda-on-an-h100)); today's takes the α = 0 step where "
+            "it cannot hold one (below), not yet run on a GPU at 4 fs.",
         ]
     )
 
