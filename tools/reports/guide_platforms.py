@@ -143,7 +143,11 @@ RESCALE_NOW = (
     "platforms/bench_cost_cpu_tip3p-2nm.json",
     "platforms/bench_cost_cpu_tip3p-3nm.json",
     "platforms/bench_cost_opencl_tip3p-2nm.json",
+    "platforms/bench_cost_interval_cpu_tip3p-2nm.json",
+    "platforms/bench_cost_interval_opencl_tip3p-2nm.json",
 )
+#: The rows that rescale every N-th step, by N.
+EVERY = {10: "RATTLE + rescaling every 10 steps", 100: "RATTLE + rescaling every 100 steps"}
 RESCALE4 = "RATTLE-4 + rescaling"
 RATTLE = "RATTLE"
 ALPHA4 = "α-RATTLE-4 α = 0"
@@ -157,14 +161,23 @@ def rescale_cost_now() -> str:
         sources.append(run_source)
         rows = {row["name"]: row for row in run["rows"]}
         header = run["header"]
-        atoms = int(header.split(" atoms")[0].rsplit(" ", 1)[1])
-        platform = header.split("platform ")[1].split(";")[0]
+        atoms = run.get("atoms") or int(header.split(" atoms")[0].rsplit(" ", 1)[1])
+        platform = header.split("platform ")[1].split(";")[0].split(", precision single (the CPU")[0]
         rounds = header.split("median of ")[1].split(";")[0]
         text = (
             f"{rows[RESCALE]['ms_per_step'] / rows[RATTLE]['ms_per_step']:.2f}× RATTLE's step on {atoms:,} "
             f"atoms ({platform}, median of {rounds}; "
             f"{rows[RESCALE]['host_syncs_per_step']:.2f} sums per step)"
         )
+        every = [
+            f"every {n}th step {rows[name]['ms_per_step'] / rows[RATTLE]['ms_per_step']:.2f}×"
+            for n, name in EVERY.items()
+            if name in rows
+        ]
+        if every:
+            text += ", " + ", ".join(every)
+        if run.get("note"):
+            text += f" ({run['note']})"
         if RESCALE4 in rows:
             text += (
                 f", RATTLE-4 + rescaling {rows[RESCALE4]['ms_per_step'] / rows[ALPHA4]['ms_per_step']:.2f}× "
