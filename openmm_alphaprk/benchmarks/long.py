@@ -172,16 +172,16 @@ def run_rows(
     folder.mkdir(parents=True, exist_ok=True)
     failures = {}
     for name in names:
+        run = folder / rundir.folder_name(name)
+        momentum = CarriedMomentumReporter(run / MOMENTUM_FILE, 20 * options.energy_interval, steps[name])
         try:
-            run = folder / rundir.folder_name(name)
-            momentum = CarriedMomentumReporter(run / MOMENTUM_FILE, 20 * options.energy_interval, steps[name])
             summary = run_nve(prepared, name, run, options, steps=steps[name], extra_reporters=[momentum])
         except RunFailedError as error:
             failures[name] = str(error)
             print(f"{name}: {error}", file=sys.stderr, flush=True)
             continue
         if summary.steps_this_call > 0:
-            _add_timing(folder / rundir.folder_name(name), summary.steps_this_call, summary.wall_seconds)
+            _add_timing(run, summary.steps_this_call, summary.wall_seconds)
     return failures
 
 
