@@ -22,6 +22,7 @@ PAGES = {
     "docs/energy_mode.md": [r"kJ/mol \{"],
     "docs/own_files.md": [r"hydrogen"],
     "docs/smooth_forces.md": [r"switching from 0\.8 nm", r"CMMotionRemover .*removed"],
+    "docs/splitting.md": [r"update context state", r"constrain positions"],
 }
 BLOCK = re.compile(r"```python\n(.*?)```", re.S)
 
