@@ -263,8 +263,9 @@ class ControllerSummary:
     fraction_within_tolerance : float
         Steps that ended with |H − E_ref| ≤ the energy tolerance.
     fraction_fallen_back : float
-        Steps that ended with |H − E_ref| above the energy tolerance: α* stopped at a
-        bound, or after ``max_trials`` trials, without reaching it; the step is kept.
+        Steps that ended with |H − E_ref| above the energy tolerance: no α trial reached it
+        within the bounds and ``max_trials``; the step is then the α = 0 step of its base,
+        unless an α trial ended closer to E_ref.
     fraction_at_bound : float
         Steps whose α* sat at a bound of ``alpha_bounds``.
     force_evaluations_per_step : float

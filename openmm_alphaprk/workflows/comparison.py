@@ -594,9 +594,9 @@ ACCURACY_NOTE = (
 )
 #: What "fell back" and "at a bound" mean, printed under the energy mode's line.
 CONTROLLER_NOTE = (
-    "fell back = the step ended with |H - E_ref| above the energy tolerance (alpha* stopped at a "
-    "bound, or after max_trials, without reaching it; the step is kept); at a bound = alpha* sat at "
-    "an end of alpha_bounds."
+    "fell back = the step ended with |H - E_ref| above the energy tolerance (no alpha trial reached it "
+    "within the bounds and max_trials; the step is then the alpha = 0 step of its base, unless an alpha "
+    "trial ended closer to E_ref); at a bound = alpha* sat at an end of alpha_bounds."
 )
 _WRAP = 110
 
