@@ -103,7 +103,7 @@ def test_a_row_that_stopped_short_is_reported_as_such(tmp_path, cache):
     assert [row.integrator for row in rows] == ["rattle"]  # a row never started has no line
     assert rows[0].steps == 20 and not rows[0].complete and rows[0].simulated_ps == pytest.approx(0.04)
     assert "(stopped)" in long.format_long_table(rows)
-    assert set(traces) == {"RATTLE"}
+    assert set(traces) == {"rattle"}
 
 
 def test_block_drift_finds_a_drift_under_correlated_noise_with_an_honest_error():

@@ -211,7 +211,7 @@ def analyse_rows(
 ) -> tuple[list[LongRow], dict[str, tuple[np.ndarray, np.ndarray]]]:
     """Read each row's ``energies.csv`` (what is there) and measure it; return the rows and traces.
 
-    Traces map the row's label to (time in ps, H − E_ref in kJ/mol), for the figure.
+    Traces map the row's integrator name to (time in ps, H − E_ref in kJ/mol), for the figure.
     """
     failures = failures or {}
     rows, traces = [], {}
@@ -243,7 +243,7 @@ def analyse_rows(
             if momentum.size:
                 row.carried_momentum_error = float(momentum[-1, 2])
         rows.append(row)
-        traces[row.label] = (times, residuals)
+        traces[row.integrator] = (times, residuals)
     verlet = next(
         (row.ms_per_step for row in rows if parse_integrator(row.integrator).kind == "verlet"), None
     )
