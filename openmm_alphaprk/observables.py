@@ -309,7 +309,8 @@ def residual_windows(times_ps: np.ndarray, residuals: np.ndarray, window_ps: flo
     """Cut a trace of H − E_ref into windows of ``window_ps`` and give each one's RMS and max.
 
     Windows start at the first sample's time t₀ and follow each other without overlap;
-    window k holds the samples with t₀ + k·window < t ≤ t₀ + (k + 1)·window. The first sample (the start
+    window k holds the samples with t₀ + k·window < t ≤ t₀ + (k + 1)·window (to 1e-6 of a
+    window: OpenMM's time accumulates round-off). The first sample (the start
     state, H − E_ref = 0 by definition) is left out, as in :func:`residual_statistics`.
 
     Raises
@@ -338,7 +339,8 @@ def residual_windows(times_ps: np.ndarray, residuals: np.ndarray, window_ps: flo
     if t.size < 2:
         empty = np.array([])
         return ResidualWindows(window, empty, empty, empty, empty.astype(int))
-    index = np.maximum(np.ceil((t[1:] - t[0]) / window * (1 - 1e-12)).astype(int) - 1, 0)
+    # a time within 1e-6 of a window of a boundary is on it (OpenMM's time accumulates round-off)
+    index = np.maximum(np.ceil((t[1:] - t[0]) / window - 1e-6).astype(int) - 1, 0)
     count = int(index.max()) + 1
     samples = np.bincount(index, minlength=count)
     squares = np.bincount(index, weights=np.square(y[1:]), minlength=count)

@@ -153,6 +153,9 @@ def test_residual_windows_match_a_direct_count():
         assert windows.samples[k] == inside.sum() == 20
         assert windows.rms[k] == pytest.approx(np.sqrt(np.mean(y[inside] ** 2)))
         assert windows.max_abs[k] == pytest.approx(np.max(np.abs(y[inside])))
+    # OpenMM's accumulated time: 200.00000000022 ps is the end of the 20th window, not a 21st
+    drifted = np.arange(0, 2001) * 0.1 * (1 + 1e-10)
+    assert residual_windows(drifted, np.ones_like(drifted), 10.0).samples.tolist() == [100] * 20
     with pytest.raises(InputError, match="window_ps"):
         residual_windows(t, y, 0.0)
 
