@@ -313,13 +313,18 @@ def format_cost_table(rows: Sequence[BenchmarkRow], header: str = "") -> str:
 
 
 def add_box_arguments(parser: argparse.ArgumentParser) -> None:
-    """Add the water-box options both benchmark commands share (--box, --cutoff, --timestep, --platform)."""
+    """Add the water-box options both benchmark commands share (--box, --cutoff, and the platform's)."""
     parser.add_argument(
         "--box", type=float, default=3.0, help="cubic box edge in nm (default 3.0: ~2,600 atoms)"
     )
     parser.add_argument(
         "--cutoff", type=float, default=0.9, help="PME direct-space cutoff in nm (default 0.9)"
     )
+    add_platform_arguments(parser)
+
+
+def add_platform_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the options every benchmark command shares: --timestep, --platform, --precision."""
     parser.add_argument("--timestep", type=float, default=2.0, help="step size in fs (default 2)")
     parser.add_argument("--platform", default="CPU", help="OpenMM platform (default CPU)")
     parser.add_argument(

@@ -42,6 +42,7 @@ from ..runs import RunFailedError, RunInterrupted, RunOptions, read_energies, ru
 from ..runs.integrator_names import label, parse_integrator
 from ..systems import PreparedSystem, list_systems, prepare_system
 from ..systems.arguments import add_file_arguments, system_to_prepare, unknown_systems
+from .cost import add_platform_arguments
 
 #: The rows, by integrator name; ``verlet`` is the baseline of the step-time ratios.
 LONG_INTEGRATORS = ("verlet", "rattle", "rattle+rescale", "alpha4=0", "rattle4+rescale", "energy4")
@@ -399,14 +400,7 @@ def _parser() -> argparse.ArgumentParser:
         default=None,
         help="ps of the rows that take more than one force evaluation per step (default: --time)",
     )
-    parser.add_argument("--timestep", type=float, default=2.0, help="step size in fs (default 2)")
-    parser.add_argument("--platform", default="CPU", help="OpenMM platform (default CPU)")
-    parser.add_argument(
-        "--precision",
-        choices=("single", "mixed", "double"),
-        default=None,
-        help="precision on CUDA, OpenCL or HIP",
-    )
+    add_platform_arguments(parser)
     parser.add_argument(
         "--energy-interval", type=int, default=50, help="steps between energy rows (default 50)"
     )

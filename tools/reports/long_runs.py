@@ -6,11 +6,10 @@ block differs from what the data renders).
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
-from tools.reports.markdown import markdown_table, read_blocks, update_page
+from tools.reports.markdown import generator_main, markdown_table, stale_blocks
 from tools.reports.numbers import sig, times, two
 from tools.reports.sources import DOCS, ROOT, Source, load
 
@@ -208,29 +207,11 @@ def render() -> dict[Path, dict[str, str]]:
 
 def differences() -> list[str]:
     """Return ``PAGE: BLOCK`` for every block that is missing or differs from what the data renders."""
-    found = []
-    for page, blocks in render().items():
-        on_page = read_blocks(page.read_text(encoding="utf-8"))
-        found += [
-            f"{page.relative_to(ROOT)}: {name}" for name, text in blocks.items() if on_page.get(name) != text
-        ]
-    return found
+    return stale_blocks(render(), ROOT)
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--check", action="store_true", help="write nothing; exit 1 if a block differs")
-    args = parser.parse_args(argv)
-    if args.check:
-        stale = differences()
-        print("\n".join(stale) or "every generated block is the data's")
-        return 1 if stale else 0
-    for page, blocks in render().items():
-        missing = update_page(page, blocks)
-        if missing:
-            raise SystemExit(f"{page.relative_to(ROOT)} has no block for {missing}")
-    print("rewrote the generated blocks of " + ", ".join(str(p.relative_to(ROOT)) for p in render()))
-    return 0
+    return generator_main(render, __doc__.split("\n\n")[0], ROOT, argv)
 
 
 if __name__ == "__main__":

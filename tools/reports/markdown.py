@@ -7,7 +7,9 @@ write what is between the markers; the prose around them is written by hand.
 
 from __future__ import annotations
 
+import argparse
 import re
+from collections.abc import Callable
 from pathlib import Path
 
 #: A generated block: its begin marker, then anything but another marker, then its end marker.
@@ -117,3 +119,34 @@ def update_page(page: Path, tables: dict[str, str]) -> list[str]:
 
     page.write_text(BLOCK_PATTERN.sub(replace, text), encoding="utf-8")
     return sorted(set(tables) - found)
+
+
+def stale_blocks(pages: dict[Path, dict[str, str]], root: Path) -> list[str]:
+    """Return ``PAGE: BLOCK`` for every block of ``pages`` missing on its page or differing from it."""
+    found = []
+    for page, blocks in pages.items():
+        on_page = read_blocks(page.read_text(encoding="utf-8"))
+        found += [
+            f"{page.relative_to(root)}: {name}" for name, text in blocks.items() if on_page.get(name) != text
+        ]
+    return found
+
+
+def generator_main(
+    render: Callable[[], dict[Path, dict[str, str]]], description: str, root: Path, argv: list[str] | None
+) -> int:
+    """Run a page generator's command line: rewrite the blocks ``render`` gives, or ``--check`` them."""
+    parser = argparse.ArgumentParser(description=description)
+    parser.add_argument("--check", action="store_true", help="write nothing; exit 1 if a block differs")
+    args = parser.parse_args(argv)
+    pages = render()
+    if args.check:
+        stale = stale_blocks(pages, root)
+        print("\n".join(stale) or "every generated block is the data's")
+        return 1 if stale else 0
+    for page, blocks in pages.items():
+        missing = update_page(page, blocks)
+        if missing:
+            raise SystemExit(f"{page.relative_to(root)} has no block for {missing}")
+    print("rewrote the generated blocks of " + ", ".join(str(p.relative_to(root)) for p in pages))
+    return 0
