@@ -121,6 +121,28 @@ def test_invalid_definition_is_explained():
         definition.with_overrides({"seed": 1})
 
 
+def test_a_named_solute_with_a_hydrogen_mass_is_repartitioned_and_keyed_apart():
+    villin = load_definition("villin")
+    heavy = villin.with_hydrogen_mass(3)
+    assert heavy.name == "villin-h3" and system_key(heavy) != system_key(villin)
+    topology, _, forcefield = build_model(heavy)
+    system, plain = create_system(heavy, topology, forcefield), create_system(villin, topology, forcefield)
+    mass = {a.index: system.getParticleMass(a.index).value_in_unit(unit.amu) for a in topology.atoms()}
+    protein_h = [a.index for a in topology.atoms() if a.element.symbol == "H" and a.residue.name != "HOH"]
+    water_h = [a.index for a in topology.atoms() if a.element.symbol == "H" and a.residue.name == "HOH"]
+    assert len(protein_h) == 293 and all(mass[i] == 3.0 for i in protein_h)
+    assert water_h and all(abs(mass[i] - 1.008) < 1e-3 for i in water_h)
+    total = sum(system.getParticleMass(i).value_in_unit(unit.amu) for i in range(system.getNumParticles()))
+    plain_total = sum(plain.getParticleMass(i).value_in_unit(unit.amu) for i in range(plain.getNumParticles()))
+    assert total == pytest.approx(plain_total, rel=1e-12)
+    with pytest.raises(DefinitionError, match="water only"):
+        load_definition("tip3p-2nm").with_hydrogen_mass(3)
+    with pytest.raises(DefinitionError, match="1–4 amu"):
+        villin.with_hydrogen_mass(5)
+    with pytest.raises(DefinitionError, match="applies to a 'pdb' kind"):
+        load_definition("tip3p-2nm").with_overrides({"build.hydrogen_mass_amu": 3.0})
+
+
 def test_cache_is_keyed_on_content(tmp_path):
     first = prepare_system("tip3p-2nm", cache_dir=tmp_path, overrides=QUICK)
     assert not first.from_cache and first.path.is_dir()

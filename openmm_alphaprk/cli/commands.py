@@ -113,13 +113,16 @@ def _system(args, specs) -> tuple[str, object]:
     from ..systems.files import is_system_file
 
     if not is_system_file(args.system):
-        given = given_file_options(args)
+        given = [option for option in given_file_options(args) if option != "--hydrogen-mass"]
         if given:
             raise InputError(
                 f"{' '.join(given)} apply to a system given as files (.prmtop, .psf, .top, .pdb, .cif, "
                 f".xml), not to {args.system!r}."
             )
         check_temperature(args.system, args)
+        if args.hydrogen_mass is not None:  # the named solute, repartitioned and equilibrated again
+            prepared = _prepare(system_to_prepare(args.system, args), args, rebuild=args.rebuild, specs=specs)
+            return prepared.name, prepared
         system = _prepare(args.system, args, rebuild=True, specs=specs) if args.rebuild else args.system
         return str(args.system).removesuffix(".toml").rpartition("/")[2], system
     definition = system_to_prepare(args.system, args)

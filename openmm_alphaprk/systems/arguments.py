@@ -64,7 +64,8 @@ def add_file_arguments(parser: argparse.ArgumentParser) -> None:
         "--hydrogen-mass",
         type=float,
         metavar="AMU",
-        help="hydrogen mass repartitioning (e.g. 3 for a 4 fs step), total mass kept",
+        help="hydrogen mass repartitioning (e.g. 3 for a 4 fs step), total mass kept; with a named "
+        "solute (villin, dhfr) its start is equilibrated again with the new masses",
     )
     option(
         "--as-is",
@@ -127,12 +128,21 @@ def unknown_systems(names: list[str]) -> list[str]:
 def system_to_prepare(name: str, args: argparse.Namespace) -> str | SystemDefinition:
     """Return what ``prepare_system`` takes for ``name``: the name, or the definition of its files.
 
+    A named solute with ``--hydrogen-mass`` becomes its definition with the hydrogens
+    repartitioned (:meth:`~.definitions.SystemDefinition.with_hydrogen_mass`), whose start is
+    equilibrated again with the new masses and cached under its own key.
+
     Raises
     ------
     DefinitionError
         For ``--temperature`` where no velocities are drawn at it (:func:`check_temperature`).
     """
-    system = file_definition(name, file_options(args)) if is_system_file(name) else name
+    if is_system_file(name):
+        system: str | SystemDefinition = file_definition(name, file_options(args))
+    elif getattr(args, "hydrogen_mass", None) is not None:
+        system = load_definition(name).with_hydrogen_mass(args.hydrogen_mass)
+    else:
+        system = name
     check_temperature(system, args)
     return system
 
@@ -152,9 +162,11 @@ def check_temperature(system: str | SystemDefinition, args: argparse.Namespace) 
     kelvin = getattr(args, "temperature", None)
     if kelvin is None:
         return
-    if not isinstance(system, SystemDefinition):
-        definition = load_definition(system)
-        toml = Path(system) if str(system).endswith(".toml") else DEFINITIONS_DIR / f"{system}.toml"
+    if not isinstance(system, SystemDefinition) or "files" not in system.build:  # a named system
+        definition = system if isinstance(system, SystemDefinition) else load_definition(system)
+        named = str(system if isinstance(system, str) else args.system)
+        toml = Path(named) if named.endswith(".toml") else DEFINITIONS_DIR / f"{named}.toml"
+        system = named
         raise DefinitionError(
             f"--temperature {kelvin:g} K does not apply to {system!r}: a named system starts from the state "
             f"its definition makes (equilibration.temperature_K = "

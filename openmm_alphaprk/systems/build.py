@@ -49,6 +49,8 @@ def create_system(definition: SystemDefinition, topology: app.Topology, forcefie
         "rigidWater": True,
         "removeCMMotion": False,
     }
+    if build.get("hydrogen_mass_amu") is not None:
+        kwargs["hydrogenMass"] = float(build["hydrogen_mass_amu"]) * unit.amu
     if build["nonbonded_method"] != "PME":
         return forcefield.createSystem(topology, nonbondedMethod=app.NoCutoff, **kwargs)
     cutoff = float(build["cutoff_nm"])

@@ -25,7 +25,7 @@ import copy
 import hashlib
 import json
 import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -69,6 +69,7 @@ _BUILD_KEYS: dict[str, dict[str, type | tuple[type, ...]]] = {
     "water_cluster": {"water_model": str, "radius_nm": (int, float)},
     "pdb": {"pdb": str, "cutoff_nm": (int, float)},
 }
+_OPTIONAL_BUILD_KEYS: dict[str, tuple[str, ...]] = {"pdb": ("hydrogen_mass_amu",)}
 _EQUILIBRATION_KEYS: dict[str, type | tuple[type, ...]] = {
     "seed": int,
     "temperature_K": (int, float),
@@ -164,6 +165,38 @@ class SystemDefinition:
                 raise DefinitionError(f"override {dotted!r} must be 'build.<key>' or 'equilibration.<key>'.")
             data[table][key] = value
         return parse_definition(data, self.name)
+
+    def with_hydrogen_mass(self, mass_amu: float) -> SystemDefinition:
+        """Return a copy whose hydrogens bonded to heavy atoms weigh ``mass_amu`` (a ``pdb`` kind).
+
+        The mass is taken from the heavy atom (OpenMM's ``hydrogenMass``; water's hydrogens are
+        left alone) when the System is made, so the start is minimized and equilibrated with
+        the new masses, and cached under its own key as ``<name>-h<mass>``.
+
+        Raises
+        ------
+        DefinitionError
+            For a kind with no hydrogens bonded to heavy atoms (the water boxes and the
+            cluster), or a mass outside 1–4 amu.
+
+        Examples
+        --------
+        >>> from openmm_alphaprk.systems import load_definition
+        >>> heavy = load_definition("villin").with_hydrogen_mass(3)
+        >>> heavy.name, heavy.build["hydrogen_mass_amu"]
+        ('villin-h3', 3.0)
+        >>> load_definition("tip3p-2nm").with_hydrogen_mass(3)  # doctest: +ELLIPSIS
+        Traceback (most recent call last):
+        ...
+        openmm_alphaprk.systems.definitions.DefinitionError: system 'tip3p-2nm' is water only: ...
+        """
+        if self.build.get("kind") != "pdb":
+            raise DefinitionError(
+                f"system {self.name!r} is water only: rigid water's hydrogens are not repartitioned, so "
+                "a hydrogen mass changes nothing; leave --hydrogen-mass out (rigid water runs 4 fs as it is)."
+            )
+        changed = self.with_overrides({"build.hydrogen_mass_amu": float(mass_amu)})
+        return replace(changed, name=f"{self.name}-h{float(mass_amu):g}")
 
 
 def list_systems() -> list[str]:
@@ -288,6 +321,18 @@ def _check_built_kind(name: str, kind: str, build: dict[str, Any]) -> None:
                 raise DefinitionError(
                     f"system {name!r}: build.{key} must be a positive number, got {value!r}."
                 )
+    mass = build.get("hydrogen_mass_amu")
+    if mass is not None:
+        if "hydrogen_mass_amu" not in _OPTIONAL_BUILD_KEYS.get(kind, ()):
+            raise DefinitionError(
+                f"system {name!r}: build.hydrogen_mass_amu applies to a 'pdb' kind (a solute's hydrogens); "
+                f"a {kind!r} is water only, whose rigid hydrogens are left alone."
+            )
+        if isinstance(mass, bool) or not isinstance(mass, (int, float)) or not 1.0 <= mass <= 4.0:
+            raise DefinitionError(
+                f"system {name!r}: build.hydrogen_mass_amu {mass!r} must be a number of 1–4 amu (3 or 4 is "
+                "usual for a 4 fs step)."
+            )
     if "switch_distance_nm" in build and not build["switch_distance_nm"] < build.get("cutoff_nm", 0):
         raise DefinitionError(
             f"system {name!r}: build.switch_distance_nm must be below cutoff_nm (and needs a cutoff)."
