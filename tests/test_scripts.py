@@ -170,6 +170,15 @@ elif args and args[0].endswith("dhfr_openmm_settings.py"):
     record({"dhfr": names})
     with open(value("--json"), "w", encoding="utf-8") as handle:
         handle.write("{}")
+elif args and args[0].endswith("splitting_survey.py"):
+    sys.path.insert(0, os.path.dirname(args[0]))
+    import splitting_survey
+    parsed = splitting_survey.parser().parse_args(args[1:])
+    labels = {label for label, _, _ in splitting_survey.ROWS}
+    assert not parsed.rows or set(parsed.rows) <= labels, parsed.rows
+    record({"survey": args[1:]})
+    with open(value("--json"), "w", encoding="utf-8") as handle:
+        handle.write("{}")
 elif args[0] == "-c":
     exec(compile(args[1], "-c", "exec"))
 else:
@@ -219,7 +228,11 @@ def test_cuda_check_runs_its_commands_with_arguments_the_package_accepts(tmp_pat
     (tests,) = [c for c in calls if "pytest" in c]
     assert tests["platforms"] == "CUDA:mixed,CUDA:single"
     assert all((ROOT / arg).is_file() for arg in tests["pytest"] if arg.startswith("tests/"))
-    assert [c["dhfr"] for c in calls if "dhfr" in c] == [["rattle", "rattle+rescale", "rattle+rescale@10",
-                                                         "rattle4+rescale"]]  # fmt: skip
+    assert [c["dhfr"] for c in calls if "dhfr" in c] == [
+        ["rattle", "rattle+rescale", "rattle+rescale@10", "split-me", "split-me+rescale", "rattle4+rescale"]
+    ]
+    assert "split-me+rescale" in long_run
+    surveys = [c["survey"] for c in calls if "survey" in c]
+    assert len(surveys) == 2 and all(s[s.index("--precision") + 1] == "mixed" for s in surveys)
     assert {p.name for p in out.iterdir()} == {"log.txt", "long.tar.gz", "cost.tar.gz"}
     assert "done in" in (out / "log.txt").read_text(encoding="utf-8")

@@ -11,19 +11,22 @@
 #      single precision does not conserve energy (the same run), so LONG_PRECISIONS is mixed;
 #   B. then alone on the GPU: `alphaprk bench cost` on each of COST_SYSTEMS (mixed), on DHFR with
 #      the package's settings at 2 fs, and OpenMM's DHFR benchmark system as OpenMM builds it at
-#      4 fs (tools/scripts/dhfr_openmm_settings.py), for ns/day beside OpenMM's published figure.
+#      4 fs (tools/scripts/dhfr_openmm_settings.py), for ns/day beside OpenMM's published figure;
+#   C. the explicit family's survey (tools/scripts/splitting_survey.py) on villin at 2 fs and on
+#      dhfr at 4 fs with hydrogens of 3 amu (its start "dhfr-h3" built beforehand like dhfr).
 # Usage: OUT=folder tools/scripts/cuda_check.sh
 # The 21k- and 72k-atom boxes (tools/scripts/systems/*.toml) and dhfr are built and equilibrated
 # on first use, minutes on the CPU: build them before the GPU is lent and carry the cache, e.g.
 #   ALPHAPRK_CACHE_DIR=$PWD/.devcache python -c "from openmm_alphaprk.systems import prepare_system as p;
-#       [p(n) for n in ('tools/scripts/systems/tip3p-6nm.toml', 'tools/scripts/systems/tip3p-9nm.toml', 'dhfr')]"
+#       [p(n) for n in ('tools/scripts/systems/tip3p-6nm.toml', 'tools/scripts/systems/tip3p-9nm.toml', 'dhfr')];
+#       from openmm_alphaprk.systems import load_definition as d; p(d('dhfr').with_hydrogen_mass(3))"
 # then on the GPU machine export ALPHAPRK_CACHE_DIR to the carried folder (the key holds the
 # definition's content and OpenMM's version).
 # Files: $OUT/log.txt (everything printed), $OUT/long.tar.gz (test log, long-run folders without
 # checkpoints and trajectories; written when part A ends) and $OUT/cost.tar.gz (cost JSONs). Knobs (environment): PLATFORM (CUDA),
 # PRECISIONS of the tests ("mixed single"), LONG_PRECISIONS ("mixed"), LONG_SYSTEM (tip3p-3nm),
 # LONG_TIME (250), MULTI_TIME (100), LONG_LIMIT (300), TEST_LIMIT (280), COST_SYSTEMS, COST_STEPS
-# (200), COST_ROUNDS (3), DHFR (1), TESTS (the test files; "none": no tests), GROUPS_OF_ROWS.
+# (200), COST_ROUNDS (3), DHFR (1), SURVEYS (1), TESTS (the test files; "none": no tests), GROUPS_OF_ROWS.
 set -uo pipefail
 OUT=${OUT:-cuda-check}
 mkdir -p "$OUT"
@@ -42,11 +45,14 @@ COST_SYSTEMS=${COST_SYSTEMS:-tip3p-3nm tools/scripts/systems/tip3p-6nm.toml tool
 COST_STEPS=${COST_STEPS:-200}
 COST_ROUNDS=${COST_ROUNDS:-3}
 DHFR=${DHFR:-1}
+SURVEYS=${SURVEYS:-1}
 TESTS=${TESTS:-tests/test_common_platform.py tests/test_rescale.py}
 ALPHAPRK="python3 -m openmm_alphaprk"
 # the rows of bench long; one process per group (a comma joins rows that run one after the other)
 INTERVAL_ROWS="rattle+rescale@10 rattle4+rescale@10"
-GROUPS_OF_ROWS=${GROUPS_OF_ROWS:-verlet,rattle,rattle+rescale,rattle+rescale@10,alpha4=0,rattle4+rescale,energy4}
+GROUPS_OF_ROWS=${GROUPS_OF_ROWS:-verlet,rattle,rattle+rescale,rattle+rescale@10,split-me,split-me+rescale,alpha4=0,rattle4+rescale,energy4}
+# the explicit family's rows of bench cost
+SPLIT_ROWS="split-me split-me+rescale split3-me"
 ROWS=${GROUPS_OF_ROWS//,/ }
 {
 nvidia-smi --query-gpu=name,driver_version --format=csv,noheader 2>/dev/null || echo "no nvidia-smi"
@@ -92,20 +98,29 @@ for system in $COST_SYSTEMS; do
     echo "-- cost, $system, mixed ($((SECONDS - start)) s)"
     timeout 60 $ALPHAPRK bench cost --system "$system" --platform "$PLATFORM" --precision mixed \
         --steps "$COST_STEPS" --rounds "$COST_ROUNDS" --energy-steps 10 \
-        --integrators verlet rattle rattle+rescale $INTERVAL_ROWS alpha4=0 rattle4+rescale energy4 \
+        --integrators verlet rattle rattle+rescale $INTERVAL_ROWS $SPLIT_ROWS alpha4=0 rattle4+rescale energy4 \
         --json "$WORK/cost_${i}_$(basename "$system" .toml).json" 2>&1 | grep -v "^round\|^energy pass\|unsupported OpenCL"
 done
 if [ "$DHFR" = 1 ]; then
     echo "-- cost, dhfr (package settings), 2 fs, mixed ($((SECONDS - start)) s)"
     timeout 70 $ALPHAPRK bench cost --system dhfr --platform "$PLATFORM" --precision mixed \
         --steps "$COST_STEPS" --rounds "$COST_ROUNDS" --energy-steps 10 \
-        --integrators verlet rattle rattle+rescale $INTERVAL_ROWS alpha4=0 rattle4+rescale \
+        --integrators verlet rattle rattle+rescale $INTERVAL_ROWS $SPLIT_ROWS alpha4=0 rattle4+rescale \
         --json "$WORK/cost_dhfr_2fs.json" 2>&1 | grep -v "^round\|^energy pass\|unsupported OpenCL"
     echo "-- DHFR as OpenMM's benchmark builds it, 4 fs, mixed ($((SECONDS - start)) s)"
     timeout 50 python3 tools/scripts/dhfr_openmm_settings.py --platform "$PLATFORM" --precision mixed \
-        --integrators rattle rattle+rescale ${INTERVAL_ROWS%% *} rattle4+rescale --steps 500 --rounds 3 \
+        --integrators rattle rattle+rescale ${INTERVAL_ROWS%% *} split-me split-me+rescale rattle4+rescale \
+        --steps 500 --rounds 3 \
         --json "$WORK/dhfr_openmm_settings.json" 2>&1
+fi
+if [ "$SURVEYS" = 1 ]; then
+    echo "== C: the explicit family against RATTLE at equal force evaluations, mixed ($((SECONDS - start)) s)"
+    two=(--rows "RATTLE at h" "RATTLE at h/2" split=1/4 split-bcss split-me split-me+rescale)
+    timeout 90 python3 tools/scripts/splitting_survey.py --system villin --timestep 2 --platform "$PLATFORM" \
+        --precision mixed --json "$WORK/survey_villin_2fs.json" 2>&1
+    timeout 90 python3 tools/scripts/splitting_survey.py --system dhfr --timestep 4 --hydrogen-mass 3 \
+        --platform "$PLATFORM" --precision mixed "${two[@]}" --json "$WORK/survey_dhfr_4fs_hmr3.json" 2>&1
 fi
 echo "done in $((SECONDS - start)) s"
 } 2>&1 | tee "$OUT/log.txt"
-tar -C "$WORK" -czf "$OUT/cost.tar.gz" $(cd "$WORK" && ls cost_*.json dhfr_*.json 2>/dev/null)
+tar -C "$WORK" -czf "$OUT/cost.tar.gz" $(cd "$WORK" && ls cost_*.json dhfr_*.json survey_*.json 2>/dev/null)

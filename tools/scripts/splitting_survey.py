@@ -8,12 +8,14 @@ default. Prints a table; ``--json`` also writes it. Used for docs/splitting.md.
 
     python tools/scripts/splitting_survey.py --system tip3p-2nm --timestep 2 --json out.json
     python tools/scripts/splitting_survey.py --system villin --timestep 4 --hydrogen-mass 3
+
+``--hydrogen-mass`` starts a solute (villin, dhfr) from its definition with the hydrogens
+repartitioned, minimized and equilibrated again with the new masses (``villin-h3``).
 """
 
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import platform
 import time
@@ -23,8 +25,7 @@ import openmm as mm
 from openmm_alphaprk.observables import rms
 from openmm_alphaprk.runs.accuracy import horizon_errors, periodic_box, reference, run_trajectory
 from openmm_alphaprk.runs.integrator_names import at_divisor
-from openmm_alphaprk.systems import prepare_system
-from openmm_alphaprk.systems.files import repartition_hydrogen_mass
+from openmm_alphaprk.systems import load_definition, prepare_system
 
 HORIZONS = (5, 20, 50)
 ROWS = (
@@ -33,13 +34,15 @@ ROWS = (
     ("split=1/4", "split=1/4", 1),
     ("split-bcss", "split-bcss", 1),
     ("split-me", "split-me", 1),
+    ("split-me+rescale", "split-me+rescale", 1),
     ("RATTLE at h/3", "rattle", 3),
     ("split3-bcss", "split3-bcss", 1),
     ("split3-me", "split3-me", 1),
 )
 
 
-def main(argv: list[str] | None = None) -> None:
+def parser() -> argparse.ArgumentParser:
+    """Return the command line's parser."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--system", default="tip3p-2nm")
     parser.add_argument("--timestep", type=float, default=2.0, help="fs")
@@ -48,18 +51,25 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--hydrogen-mass", type=float, help="repartition hydrogen masses (amu) in the start")
     parser.add_argument("--rows", nargs="+", help="labels of the rows to run (default: all)")
     parser.add_argument("--platform", default="CPU")
+    parser.add_argument("--precision", choices=("single", "mixed", "double"), help="CUDA/OpenCL/HIP")
     parser.add_argument("--json")
-    args = parser.parse_args(argv)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> None:
+    args = parser().parse_args(argv)
     horizons = sorted(args.horizons)
-    prepared = prepare_system(args.system)
-    if args.hydrogen_mass is not None:
-        system = mm.XmlSerializer.deserialize(mm.XmlSerializer.serialize(prepared.system))
-        print(repartition_hydrogen_mass(system, args.hydrogen_mass, prepared.topology))
-        prepared = dataclasses.replace(prepared, system=system)
+    if args.hydrogen_mass is None:
+        prepared = prepare_system(args.system)
+    else:
+        prepared = prepare_system(load_definition(args.system).with_hydrogen_mass(args.hydrogen_mass))
     h = args.timestep / 1000.0
     box = periodic_box(prepared)
     started = time.perf_counter()
-    ref = run_trajectory(prepared, reference(h), horizons, platform=args.platform, read_energy=False)
+    properties = {"Precision": args.precision} if args.precision else {}
+    ref = run_trajectory(
+        prepared, reference(h), horizons, platform=args.platform, properties=properties, read_energy=False
+    )
     print(f"reference RATTLE at h/64: {time.perf_counter() - started:.0f} s", flush=True)
     rows = []
     for label, name, divisor in ROWS:
@@ -67,7 +77,11 @@ def main(argv: list[str] | None = None) -> None:
             continue
         started = time.perf_counter()
         run = run_trajectory(
-            prepared, at_divisor(name, h, divisor), [*horizons, args.steps], platform=args.platform
+            prepared,
+            at_divisor(name, h, divisor),
+            [*horizons, args.steps],
+            platform=args.platform,
+            properties=properties,
         )
         errors = horizon_errors(run, ref, box, args.timestep)
         entry = {
@@ -96,9 +110,11 @@ def main(argv: list[str] | None = None) -> None:
                     "system": args.system,
                     "timestep_fs": args.timestep,
                     "hydrogen_mass_amu": args.hydrogen_mass,
+                    "start": f"{prepared.name} ({prepared.source})",
                     "steps": args.steps,
                     "horizons": horizons,
                     "platform": args.platform,
+                    "precision": args.precision,
                     "openmm": mm.__version__,
                     "python": platform.python_version(),
                     "reference": "RATTLE at h/64, constraint tolerance 1e-10",
