@@ -6,7 +6,7 @@ import re
 
 import pytest
 
-from tools.reports import guide, guide_limits, guide_platforms, long_runs, sources
+from tools.reports import guide, guide_limits, guide_platforms, long_runs, sources, splitting
 from tools.reports.numbers import percent, tolerance, two, whole_percent
 
 #: A data file a block names: `docs/data/PATH` or a link (data/PATH) from a page of docs/.
@@ -17,13 +17,15 @@ FOLLOWS = {
     "peptide hmr 4fs reading": "peptide hmr 4fs",
     "cuda energy mode": "cuda long",
     "cpu energy mode": "cpu long",
+    "survey verdicts": "survey tip3p-2nm 2 fs",
+    "per picosecond": "survey tip3p-2nm 4 fs",
 }
 
 
 def test_every_generated_block_names_its_data_and_each_file_has_provenance():
     """A block says which files its numbers come from; each is a data file with its day and machine."""
     files = set(sources.data_files())
-    for page, blocks in {**guide.render(), **long_runs.render()}.items():
+    for page, blocks in {**guide.render(), **long_runs.render(), **splitting.render()}.items():
         for name, text in blocks.items():
             named = {a or b for a, b in NAMED.findall(text)}
             where = f"{page.name}: {name}"
@@ -73,6 +75,16 @@ def test_numbers_are_written_as_the_pages_write_them():
     assert [two(v) for v in (91.7, 7.98, 0.802, 0.003, 1.55)] == ["92", "8.0", "0.80", "0.0030", "1.6"]
     assert [tolerance(v) for v in (5e-4, 1e-5, 5e-5)] == ["5e-4", "1e-5", "5e-5"]
     assert (percent(0.87), percent(0.998), whole_percent(0.9925)) == ("87 %", "99.8 %", "99 %")
+
+
+def test_the_splitting_page_is_what_its_data_renders():
+    """docs/splitting.md's blocks are ``python -m tools.reports.splitting``'s (run it after new surveys)."""
+    assert splitting.differences() == []
+    blocks = splitting.render()[splitting.PAGE]
+    assert {"survey tip3p-2nm 2 fs", "survey villin 2 fs", "survey verdicts"} <= set(blocks)
+    # the verdicts are the data's: the minimum-error member's ratio to RATTLE at h/2, goal by goal
+    found = splitting.compare("villin_2fs.json")
+    assert found is not None and f"{found.energy:.2f}× below RATTLE at h/2" in blocks["survey verdicts"]
 
 
 def test_the_long_runs_page_is_what_its_data_renders():

@@ -25,7 +25,7 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-from tools.reports import guide_limits, guide_platforms, guide_runs, guide_smooth_forces
+from tools.reports import guide_limits, guide_platforms, guide_runs, guide_smooth_forces, splitting
 from tools.reports.markdown import generator_main, markdown_table, stale_blocks
 from tools.reports.numbers import sig, times
 from tools.reports.sources import DOCS, ROOT, Source, load
@@ -153,6 +153,32 @@ class Accuracy:
         )
 
 
+# ------------------------------------------------------------------ the explicit family
+#: The splitting surveys the guide's row of the minimum-error member is read from (2 fs).
+SPLITTING_2FS = ("tip3p-2nm_2fs.json", "villin_2fs.json")
+
+
+@dataclass(frozen=True)
+class SplittingRow:
+    """The minimum-error member against RATTLE at h/2 on tip3p-2nm and villin at 2 fs."""
+
+    energy: str
+    positions: str
+    steps: int
+    sources: list[Source]
+
+
+def splitting_row() -> SplittingRow:
+    """Read the 2 fs splitting surveys: energy ratios per system, the span of position-error ratios."""
+    found = [splitting.compare(path) for path in SPLITTING_2FS]
+    return SplittingRow(
+        per_system([c.energy for c in found], lambda v: f"{v:.1f}"),
+        span([r for c in found for r in c.positions], lambda v: f"{v:.2f}"),
+        found[0].data["steps"],
+        [load(splitting.FOLDER + path)[1] for path in SPLITTING_2FS],
+    )
+
+
 # ------------------------------------------------------------------ the blocks
 #: The long runs whose drift and ns/day the README's table gives (H100, CUDA mixed).
 LONG_RUN = "long_runs/cuda_h100/long_sequential_mixed.json"
@@ -187,6 +213,7 @@ def readme_table(a2: Accuracy, a4: Accuracy) -> str:
     e4_k = sorted({a2.rattle_at(s, ENERGY4).split("/")[1] for s in SYSTEMS})
     e4 = [a2.gain(s, ENERGY4, a2.rattle_at(s, ENERGY4)) for s in SYSTEMS]
     a6 = [a4.gain(s, ALPHA6, a4.rattle_at(s, ALPHA6)) for s in WATER]
+    split = splitting_row()
     lines = [
         [
             "ordinary dynamics, any ensemble",
@@ -205,6 +232,13 @@ def readme_table(a2: Accuracy, a4: Accuracy) -> str:
             "`RattleRescaleIntegrator(h, rescale_interval=10)` (`rattle+rescale@10`)",
             "1",
             "H = E_ref at every 10th step, RATTLE's steps between; RATTLE's positions",
+        ],
+        [
+            "a lower energy error at two evaluations, symplectic",
+            "`SplittingRattleIntegrator(h)` (`split-me`)",
+            "2",
+            f"error {split.energy}× below RATTLE at h/2 (tip3p-2nm / villin, {split.steps} steps); "
+            f"positions {split.positions}× RATTLE at h/2's",
         ],
         [
             "**hold the energy and track the dynamics**",
@@ -236,7 +270,16 @@ def readme_table(a2: Accuracy, a4: Accuracy) -> str:
         ],
     ]
     long_cells, long_sources = long_run_columns()
-    names = ("rattle", "rattle+rescale", "rattle+rescale@10", "rattle4+rescale", "alpha4=0", None, "energy4")
+    names = (
+        "rattle",
+        "rattle+rescale",
+        "rattle+rescale@10",
+        "split-me",
+        "rattle4+rescale",
+        "alpha4=0",
+        None,
+        "energy4",
+    )
     for line, name in zip(lines, names, strict=True):
         line += long_cells.get(name, ["-", "-"])
     caption = (
@@ -245,7 +288,10 @@ def readme_table(a2: Accuracy, a4: Accuracy) -> str:
         f"force evaluations. Long runs ([long runs](docs/long_runs.md)): drift of H − E_ref in kJ/mol/ns "
         f"per degree of freedom and ns/day on an H100 (CUDA mixed, 2 fs, {long_sources[0].date}): "
         f"tip3p-3nm (2,661 atoms) in one `alphaprk bench long` run / dhfr (23,558 atoms) in "
-        f"`alphaprk bench cost`. Data: {_files(a2.sources + a4.sources + long_sources)}."
+        f"`alphaprk bench cost`. `split-me`: {split.steps} steps of 2 fs from the same starts, "
+        f"{_days(split.sources)} "
+        f"([splitting](docs/splitting.md)). Data: "
+        f"{_files(a2.sources + a4.sources + long_sources + split.sources)}."
     )
     header = ["job", "use", "evaluations per step", "measured", "long-run drift", "ns/day (H100)"]
     return caption + "\n\n" + markdown_table(header, lines)
@@ -278,6 +324,7 @@ def integrators_table(a2: Accuracy, a4: Accuracy, md: dict, md_source: Source, g
         [a2.evaluations(s, RATTLE4_RESCALE) / a2.evaluations(s, ENERGY4) for s in SYSTEMS]
     )
     tj = per_system([1 / a2.gain(s, TRIPLE_JUMP, a2.rattle_at(s, TRIPLE_JUMP)) for s in SYSTEMS], times)
+    split = splitting_row()
     fixed = [e for system in md["energy"].values() for e in system if e["label"] == "α-RATTLE α = 1/6 2 fs"]
     rattles = {
         system: next(e for e in entries if e["label"] == "RATTLE 2 fs")
@@ -304,6 +351,15 @@ def integrators_table(a2: Accuracy, a4: Accuracy, md: dict, md_source: Source, g
             f"1 evaluation, {span(rescale_time, lambda v: f'{v:.1f}')}× RATTLE's step on the CPU "
             f"({times(gpu['rescale_21k'])}× at 21k atoms on an H100); RMS(H − E_ref) at the energy's "
             f"round-off (≤ {sig(rescale_rms, 1)} kJ/mol); positions RATTLE's",
+        ],
+        [
+            "symplectic dynamics with a lower energy error at two evaluations",
+            "`SplittingRattleIntegrator(h)` (`split-me`): α-RATTLE's quadrature as a kick-drift splitting "
+            "with constraints, the minimum-error α",
+            f"2 evaluations; RMS(H − E_ref) {split.energy}× below RATTLE at h/2 (tip3p-2nm / villin, "
+            f"{split.steps} steps); position error {split.positions}× RATTLE at h/2's. With `+rescale` "
+            "H is held at round-off on the same trajectory, which `rattle+rescale` at h/2 also gives "
+            "([the explicit family](splitting.md))",
         ],
         [
             "**hold the energy *and* track the dynamics**",
@@ -354,7 +410,8 @@ def integrators_table(a2: Accuracy, a4: Accuracy, md: dict, md_source: Source, g
         f"{a2.caption(SYSTEMS)}; position error = RMS distance per atom to RATTLE at h/64 after "
         f'{HORIZON_FS:g} fs; "at equal cost" = k RATTLE steps of h/k, k the row\'s force evaluations '
         f"per step; order 6 at {a4.timestep_fs:g} fs: {a4.steps} steps, {_days(a4.sources)}. Data: "
-        f"{_files(a2.sources + a4.sources)}; H100: {_files(gpu['sources'])}."
+        f"{_files(a2.sources + a4.sources)}; `split-me` ({_days(split.sources)}): "
+        f"{_files(split.sources)}; H100: {_files(gpu['sources'])}."
     )
     header = ["job", "use", f"measured at {a2.timestep_fs:g} fs ({' / '.join(SYSTEMS)})"]
     return caption + "\n\n" + markdown_table(header, lines)

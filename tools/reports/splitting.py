@@ -1,0 +1,198 @@
+"""The generated blocks of docs/splitting.md from docs/data/splitting/ (the explicit α-family's survey).
+
+``python -m tools.reports.splitting`` rewrites them; ``--check`` only compares (exit 1 if a
+block differs from what the data renders). The data are written by
+``tools/scripts/splitting_survey.py``.
+"""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+from tools.reports.markdown import generator_main, markdown_table, stale_blocks
+from tools.reports.numbers import sig, times
+from tools.reports.sources import DATA, DOCS, ROOT, load
+
+PAGE = DOCS / "splitting.md"
+FOLDER = "splitting/"
+
+#: The systems as the page names them.
+SYSTEMS = {
+    "tip3p-2nm": "tip3p-2nm (rigid TIP3P, 774 atoms, PME)",
+    "tip3p-3nm": "tip3p-3nm (rigid TIP3P, 2,661 atoms, PME)",
+    "villin": "villin (8,867 atoms, Amber14, HBonds, PME)",
+    "dhfr": "dhfr (23,558 atoms, amber99sb, HBonds, PME)",
+}
+
+#: The survey's rows as the page names them.
+ROWS = {
+    "RATTLE at h": "RATTLE at h",
+    "RATTLE at h/2": "RATTLE at h/2",
+    "split=1/4": "splitting α = ¼ (`split=1/4`)",
+    "split-bcss": "splitting, BCSS α = 0.2882 (`split-bcss`)",
+    "split-me": "**splitting, minimum error α = 0.3068 (`split-me`)**",
+    "split-me+rescale": "splitting, minimum error, then the rescaling (`split-me+rescale`)",
+    "RATTLE at h/3": "RATTLE at h/3",
+    "split3-bcss": "3-stage BCSS (`split3-bcss`)",
+    "split3-me": "3-stage minimum error (`split3-me`)",
+}
+
+#: The surveys on the page, in its order: (block name, data file).
+SURVEYS = (
+    ("survey tip3p-2nm 2 fs", "tip3p-2nm_2fs.json"),
+    ("survey tip3p-3nm 2 fs", "tip3p-3nm_2fs.json"),
+    ("survey villin 2 fs", "villin_2fs.json"),
+    ("survey dhfr 2 fs", "dhfr_2fs.json"),
+    ("survey tip3p-2nm 4 fs", "tip3p-2nm_4fs.json"),
+    ("survey villin 4 fs", "villin_4fs_hmr3.json"),
+    ("survey dhfr 4 fs", "dhfr_4fs_hmr3.json"),
+)
+
+#: Goals set for the family: energy error below RATTLE at h/2's by this factor (2 fs; 4 fs with
+#: hydrogens of 3 amu), position error at most this multiple of RATTLE at h/2's, the rescaled
+#: member's RMS at most this fraction of RATTLE's.
+ENERGY_GOAL = {2.0: 3.0, 4.0: 2.5}
+POSITION_GOAL = 1.2
+RESCALED_GOAL = 1e-3
+
+
+def _rows(data: dict) -> dict[str, dict]:
+    return {row["row"]: row for row in data["rows"]}
+
+
+def _title(data: dict) -> str:
+    name = SYSTEMS.get(data["system"], data["system"])
+    title = f"**{name}, {data['timestep_fs']:g} fs"
+    if data.get("hydrogen_mass_amu"):
+        again = "-h" in data.get("start", "")
+        how = "start equilibrated with them" if again else "repartitioned in the start, not re-equilibrated"
+        title += f", hydrogens {data['hydrogen_mass_amu']:g} amu ({how})"
+    return title + "**"
+
+
+def survey_table(path: str) -> str:
+    """Render one survey: evaluations per step, RMS(H − E_ref), position errors at the horizons, per row."""
+    data, source = load(FOLDER + path)
+    horizons = " / ".join(str(h) for h in data["horizons"])
+    header = ["row", "evaluations / step", "RMS(H − E_ref) kJ/mol"]
+    header.append(f"position error nm after {horizons} steps")
+    table = []
+    for row in data["rows"]:
+        errors = " / ".join(sig(e) for e in row["position_rms"])
+        if row.get("blew_up_at_step"):
+            errors += f" (blew up at step {row['blew_up_at_step']})"
+        label = ROWS.get(row["row"], row["row"])
+        table.append([label, f"{row['evaluations']:g}", sig(row["rms_residual"], 3), errors])
+    return (
+        f"{_title(data)} — {data['steps']} steps from the start `{data.get('start', data['system'])}`; "
+        f"measured on {source.machine}, {source.date}; data `docs/data/{source.path}`\n\n"
+        + markdown_table(header, table)
+    )
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """The minimum-error member against RATTLE at h/2 in one survey (ratios > 1: the member better)."""
+
+    data: dict
+    energy: float
+    positions: tuple[float, ...]
+    rescaled_fraction: float | None
+    rescaled_rms: float | None
+
+    @property
+    def worst_position(self) -> float:
+        """The largest ratio of the member's position error to RATTLE at h/2's."""
+        return max(self.positions)
+
+
+def compare(path: str) -> Comparison | None:
+    """Return `split-me` against RATTLE at h/2 in the survey ``path`` (None without both rows)."""
+    data, _ = load(FOLDER + path)
+    rows = _rows(data)
+    me, half = rows.get("split-me"), rows.get("RATTLE at h/2")
+    if me is None or half is None:
+        return None
+    rescaled, rattle = rows.get("split-me+rescale"), rows.get("RATTLE at h")
+    fraction = None
+    if rescaled is not None and rattle is not None:
+        fraction = rescaled["rms_residual"] / rattle["rms_residual"]
+    return Comparison(
+        data,
+        half["rms_residual"] / me["rms_residual"],
+        tuple(a / b for a, b in zip(me["position_rms"], half["position_rms"])),
+        fraction,
+        None if rescaled is None else rescaled["rms_residual"],
+    )
+
+
+def survey_verdicts() -> str:
+    """One line per survey: the minimum-error member and its rescaling against RATTLE at h/2, goals stated."""
+    lines = []
+    for _, path in SURVEYS:
+        found = compare(path) if (DATA / FOLDER / path).is_file() else None
+        if found is None:
+            continue
+        data = found.data
+        h = data["timestep_fs"]
+        goal = ENERGY_GOAL.get(h) if h == 2.0 or data.get("hydrogen_mass_amu") else None
+        line = (
+            f"- {_title(data)}: `split-me` {found.energy:.2f}× below RATTLE at h/2 in RMS(H − E_ref)"
+            + (f" (goal ≥ {goal:g}×: **{'met' if found.energy >= goal else 'missed'}**)" if goal else "")
+            + f"; position error {' / '.join(f'{r:.2f}' for r in found.positions)} × RATTLE at h/2's"
+        )
+        met = found.worst_position <= POSITION_GOAL
+        line += f" (goal ≤ {POSITION_GOAL:g}×: **{'met' if met else 'missed'}**)"
+        if found.rescaled_fraction is not None:
+            met = found.rescaled_fraction <= RESCALED_GOAL
+            line += (
+                f"; `split-me+rescale` RMS {sig(found.rescaled_rms)} kJ/mol, "
+                f"{sig(found.rescaled_fraction)} of RATTLE's (goal ≤ {RESCALED_GOAL:g}: "
+                f"**{'met' if met else 'missed'}**)"
+            )
+        lines.append(line + ".")
+    return "\n".join(lines)
+
+
+def per_picosecond() -> str:
+    """Compare `split-me` at 4 fs (hydrogens repartitioned) with RATTLE at 2 fs, 1 amu: equal cost per ps."""
+    lines = []
+    for system in ("tip3p-2nm", "villin", "dhfr"):
+        four = next((p for _, p in SURVEYS if p.startswith(f"{system}_4fs")), None)
+        two_fs = f"{system}_2fs.json"
+        if four is None or not (DATA / FOLDER / four).is_file() or not (DATA / FOLDER / two_fs).is_file():
+            continue
+        me = _rows(load(FOLDER + four)[0]).get("split-me")
+        rattle = _rows(load(FOLDER + two_fs)[0]).get("RATTLE at h")
+        if me is None or rattle is None:
+            continue
+        ratio = rattle["rms_residual"] / me["rms_residual"]
+        lines.append(
+            f"- {system}: `split-me` at 4 fs {sig(me['rms_residual'], 3)} kJ/mol against RATTLE at 2 fs "
+            f"{sig(rattle['rms_residual'], 3)} kJ/mol (the 2 fs survey's, hydrogens 1 amu): {times(ratio)}× "
+            f"{'lower' if ratio > 1 else 'higher'} — **{'met' if ratio > 1 else 'missed'}**."
+        )
+    return "\n".join(lines)
+
+
+def render() -> dict[Path, dict[str, str]]:
+    """Every generated block of the page whose data file exists, by page and block name."""
+    blocks = {name: survey_table(path) for name, path in SURVEYS if (DATA / FOLDER / path).is_file()}
+    blocks["survey verdicts"] = survey_verdicts()
+    blocks["per picosecond"] = per_picosecond()
+    return {PAGE: blocks}
+
+
+def differences() -> list[str]:
+    """Return ``PAGE: BLOCK`` for every block that is missing or differs from what the data renders."""
+    return stale_blocks(render(), ROOT)
+
+
+def main(argv: list[str] | None = None) -> int:
+    return generator_main(render, __doc__.split("\n\n")[0], ROOT, argv)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
