@@ -198,6 +198,8 @@ def test_a_large_step_without_repartitioned_hydrogens_warns_and_names_the_fix(tm
         (["tip3p-2nm", "--forcefield", *TIP3P], "--forcefield apply to a system given as files"),
         (["water.xml", "--state", "state.xml", "--constraints", "none"], "keeps its own constraints"),
         (["water.pdb", "--forcefield", *TIP3P, "--hydrogen-mass", "9"], "outside 1–4 amu"),
+        (["tip3p-2nm", "--hydrogen-mass", "3"], "is water only: rigid water's hydrogens are not"),
+        (["villin", "--hydrogen-mass", "3", "--temperature", "310"], "does not apply to 'villin'"),
     ],
 )
 def test_file_errors_name_the_problem_and_the_fix_before_any_step(
@@ -374,3 +376,17 @@ def test_a_start_that_blows_up_gets_the_start_blow_up_message(water_files, tmp_p
             energy_interval=10,
             progress=False,
         )
+
+
+def test_a_named_solute_with_a_hydrogen_mass_is_prepared_from_its_repartitioned_definition():
+    """``--hydrogen-mass 3`` with villin: its definition with 3 amu hydrogens (nothing built here)."""
+    import argparse
+
+    from openmm_alphaprk.systems.arguments import add_file_arguments, system_to_prepare
+
+    parser = argparse.ArgumentParser()
+    add_file_arguments(parser)
+    parser.add_argument("--temperature", type=float)
+    definition = system_to_prepare("villin", parser.parse_args(["--hydrogen-mass", "3"]))
+    assert definition.name == "villin-h3" and definition.build["hydrogen_mass_amu"] == 3.0
+    assert system_to_prepare("villin", parser.parse_args([])) == "villin"
