@@ -386,7 +386,6 @@ def test_a_named_solute_with_a_hydrogen_mass_is_prepared_from_its_repartitioned_
 
     parser = argparse.ArgumentParser()
     add_file_arguments(parser)
-    parser.add_argument("--temperature", type=float)
     definition = system_to_prepare("villin", parser.parse_args(["--hydrogen-mass", "3"]))
     assert definition.name == "villin-h3" and definition.build["hydrogen_mass_amu"] == 3.0
     assert system_to_prepare("villin", parser.parse_args([])) == "villin"
