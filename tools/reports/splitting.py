@@ -177,11 +177,42 @@ def per_picosecond() -> str:
     return "\n".join(lines)
 
 
+#: Surveys run twice from the same start (the earlier run's file: the name with ``_first``).
+REPEATED = ("tip3p-2nm_2fs.json", "tip3p-2nm_4fs.json", "villin_2fs.json")
+
+
+def repeats() -> str:
+    """Render the surveys run twice: RMS(H − E_ref) of RATTLE at h/2 and of `split-me`, each run."""
+    header = ["survey", "run", "RATTLE at h/2 kJ/mol", "`split=1/4`", "`split-me`", "ratio", "data"]
+    table = []
+    for path in REPEATED:
+        first = path.replace(".json", "_first.json")
+        if not (DATA / FOLDER / first).is_file():
+            continue
+        for which, name in (("first", first), ("second", path)):
+            data, source = load(FOLDER + name)
+            rows = _rows(data)
+            half, quarter, me = (rows[r]["rms_residual"] for r in ("RATTLE at h/2", "split=1/4", "split-me"))
+            table.append(
+                [
+                    f"{data['system']}, {data['timestep_fs']:g} fs",
+                    f"{which} ({source.date}, commit {source.commit})",
+                    sig(half, 3),
+                    sig(quarter, 3),
+                    sig(me, 3),
+                    f"{half / me:.2f}",
+                    f"`docs/data/{source.path}`",
+                ]
+            )
+    return markdown_table(header, table)
+
+
 def render() -> dict[Path, dict[str, str]]:
     """Every generated block of the page whose data file exists, by page and block name."""
     blocks = {name: survey_table(path) for name, path in SURVEYS if (DATA / FOLDER / path).is_file()}
     blocks["survey verdicts"] = survey_verdicts()
     blocks["per picosecond"] = per_picosecond()
+    blocks["repeats"] = repeats()
     return {PAGE: blocks}
 
 
