@@ -174,7 +174,7 @@ elif args and args[0].endswith("splitting_survey.py"):
     sys.path.insert(0, os.path.dirname(args[0]))
     import splitting_survey
     parsed = splitting_survey.parser().parse_args(args[1:])
-    labels = {label for label, _, _ in splitting_survey.ROWS}
+    labels = {label for label, _, _ in splitting_survey.ROWS + splitting_survey.ORDER4_ROWS}
     assert not parsed.rows or set(parsed.rows) <= labels, parsed.rows
     record({"survey": args[1:]})
     with open(value("--json"), "w", encoding="utf-8") as handle:

@@ -1,9 +1,13 @@
 """The explicit α-family against RATTLE at equal force evaluations, from one start.
 
 For each row: force evaluations per step, RMS(H − E_ref) over ``--steps`` steps (E_ref the
-start's total energy), and the RMS position error per atom against RATTLE at h/64 after
+start's total energy), and the RMS position error per atom against RATTLE at h/64 (or
+``--reference-divisor``) after
 5 / 20 / 50 steps (``--horizons``). Rows: RATTLE at h, h/2 and h/3; the two-stage splittings
-(α = ¼, BCSS, minimum error) and the three-stage ones (BCSS, minimum error). CPU platform by
+(α = ¼, BCSS, minimum error, and the last with the rescaling) and the three-stage ones (BCSS,
+minimum error); with ``--rows`` also the order-4 rows at 10 force evaluations per step
+(RATTLE at h/10, ``alpha4=0`` and ``rattle4+rescale`` at h/2, and Suzuki's five-stage
+composition of the minimum-error member at h). CPU platform by
 default. Prints a table; ``--json`` also writes it. Used for docs/splitting.md.
 
     python tools/scripts/splitting_survey.py --system tip3p-2nm --timestep 2 --json out.json
@@ -19,12 +23,16 @@ import argparse
 import json
 import platform
 import time
+from functools import partial
 
 import openmm as mm
 
+from openmm_alphaprk import SplittingRattleIntegrator
+from openmm_alphaprk.integrators.compositions import SUZUKI5
+from openmm_alphaprk.integrators.splittings import MINIMUM_ERROR2, composed
 from openmm_alphaprk.observables import rms
 from openmm_alphaprk.runs.accuracy import horizon_errors, periodic_box, reference, run_trajectory
-from openmm_alphaprk.runs.integrator_names import at_divisor
+from openmm_alphaprk.runs.integrator_names import SubStepped, at_divisor
 from openmm_alphaprk.systems import load_definition, prepare_system
 
 HORIZONS = (5, 20, 50)
@@ -39,6 +47,25 @@ ROWS = (
     ("split3-bcss", "split3-bcss", 1),
     ("split3-me", "split3-me", 1),
 )
+#: Rows run only when ``--rows`` names them: order 4 at 10 force evaluations per step.
+ORDER4_ROWS = (
+    ("RATTLE at h/10", "rattle", 10),
+    ("alpha4=0 at h/2", "alpha4=0", 2),
+    ("rattle4+rescale at h/2", "rattle4+rescale", 2),
+    ("me2 x suzuki5", "me2 x suzuki5", 1),
+)
+#: Rows of splittings that have no integrator name: Suzuki's five-stage composition of the
+#: minimum-error member (order 4, 10 force evaluations per step), measured before it gets one.
+COMPOSED = {
+    "me2 x suzuki5": composed(MINIMUM_ERROR2, SUZUKI5.coefficients, "me2 x suzuki5", 4, SUZUKI5.source)
+}
+
+
+def row_integrator(name: str, h: float, divisor: int) -> SubStepped:
+    """Return the row ``name`` at h/``divisor``: an integrator name, or a splitting of :data:`COMPOSED`."""
+    if name in COMPOSED:
+        return SubStepped(partial(SplittingRattleIntegrator, h / divisor, splitting=COMPOSED[name]), divisor)
+    return at_divisor(name, h, divisor)
 
 
 def parser() -> argparse.ArgumentParser:
@@ -52,6 +79,9 @@ def parser() -> argparse.ArgumentParser:
     parser.add_argument("--rows", nargs="+", help="labels of the rows to run (default: all)")
     parser.add_argument("--platform", default="CPU")
     parser.add_argument("--precision", choices=("single", "mixed", "double"), help="CUDA/OpenCL/HIP")
+    parser.add_argument(
+        "--reference-divisor", type=int, default=64, help="the reference: RATTLE at h/N (default 64)"
+    )
     parser.add_argument("--json")
     return parser
 
@@ -68,17 +98,22 @@ def main(argv: list[str] | None = None) -> None:
     started = time.perf_counter()
     properties = {"Precision": args.precision} if args.precision else {}
     ref = run_trajectory(
-        prepared, reference(h), horizons, platform=args.platform, properties=properties, read_energy=False
+        prepared,
+        reference(h, args.reference_divisor),
+        horizons,
+        platform=args.platform,
+        properties=properties,
+        read_energy=False,
     )
-    print(f"reference RATTLE at h/64: {time.perf_counter() - started:.0f} s", flush=True)
+    seconds = time.perf_counter() - started
+    print(f"reference RATTLE at h/{args.reference_divisor}: {seconds:.0f} s", flush=True)
     rows = []
-    for label, name, divisor in ROWS:
-        if args.rows and label not in args.rows:
-            continue
+    chosen = [row for row in ROWS + ORDER4_ROWS if row[0] in args.rows] if args.rows else ROWS
+    for label, name, divisor in chosen:
         started = time.perf_counter()
         run = run_trajectory(
             prepared,
-            at_divisor(name, h, divisor),
+            row_integrator(name, h, divisor),
             [*horizons, args.steps],
             platform=args.platform,
             properties=properties,
@@ -117,7 +152,7 @@ def main(argv: list[str] | None = None) -> None:
                     "precision": args.precision,
                     "openmm": mm.__version__,
                     "python": platform.python_version(),
-                    "reference": "RATTLE at h/64, constraint tolerance 1e-10",
+                    "reference": f"RATTLE at h/{args.reference_divisor}, constraint tolerance 1e-10",
                     "rows": rows,
                 },
                 handle,
