@@ -37,6 +37,10 @@ ROWS = {
     "RATTLE at h/3": "RATTLE at h/3",
     "split3-bcss": "3-stage BCSS (`split3-bcss`)",
     "split3-me": "3-stage minimum error (`split3-me`)",
+    "RATTLE at h/10": "RATTLE at h/10",
+    "alpha4=0 at h/2": "`alpha4=0` (Suzuki's composition of RATTLE) at h/2",
+    "rattle4+rescale at h/2": "`rattle4+rescale` at h/2",
+    "me2 x suzuki5": "Suzuki's composition of `split-me` (`composed(me2, SUZUKI5)`) at h",
 }
 
 #: The surveys on the page, in its order: (block name, data file).
@@ -45,6 +49,7 @@ SURVEYS = (
     ("survey tip3p-3nm 2 fs", "tip3p-3nm_2fs.json"),
     ("survey villin 2 fs", "villin_2fs.json"),
     ("survey dhfr 2 fs", "dhfr_2fs.json"),
+    ("survey tip3p-2nm 2 fs order 4", "tip3p-2nm_2fs_order4.json"),
     ("survey tip3p-2nm 4 fs", "tip3p-2nm_4fs.json"),
     ("survey villin 4 fs", "villin_4fs_hmr3.json"),
     ("survey dhfr 4 fs", "dhfr_4fs_hmr3.json"),
@@ -86,7 +91,8 @@ def survey_table(path: str) -> str:
         label = ROWS.get(row["row"], row["row"])
         table.append([label, f"{row['evaluations']:g}", sig(row["rms_residual"], 3), errors])
     return (
-        f"{_title(data)} — {data['steps']} steps from the start `{data.get('start', data['system'])}`; "
+        f"{_title(data)} — {data['steps']} steps from the start `{data.get('start', data['system'])}`, "
+        f"reference {data['reference'].split(',')[0]}; "
         f"measured on {source.machine}, {source.date}; data `docs/data/{source.path}`\n\n"
         + markdown_table(header, table)
     )
