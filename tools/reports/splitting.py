@@ -178,7 +178,8 @@ def per_picosecond() -> str:
         ratio = rattle["rms_residual"] / me["rms_residual"]
         lines.append(
             f"- {system}: `split-me` at 4 fs {sig(me['rms_residual'], 3)} kJ/mol against RATTLE at 2 fs "
-            f"{sig(rattle['rms_residual'], 3)} kJ/mol (the 2 fs survey's, hydrogens 1 amu): {times(ratio)}× "
+            f"{sig(rattle['rms_residual'], 3)} kJ/mol (the 2 fs survey's row, hydrogens not repartitioned): "
+            f"{times(ratio)}× "
             f"{'lower' if ratio > 1 else 'higher'} — **{'met' if ratio > 1 else 'missed'}**."
         )
     return "\n".join(lines)
