@@ -27,6 +27,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+from numpy.polynomial import Polynomial
+
 from .._units import InputError
 
 #: McLachlan's minimum-error two-stage kick, b = ½ − α (SIAM J. Sci. Comput. 16 (1995) 151).
@@ -112,6 +115,60 @@ class Splitting:
             after = self.kicks[s] if i == s else 0.5 * self.kicks[i]
             result.append((c, before / c, after / c))
         return tuple(result)
+
+    def stability_limit(self) -> float:
+        """Return the linear stability limit ωh_max of one step on the harmonic oscillator ẍ = −ω²x.
+
+        On ẍ = −ω²x, in the variables (x, v/ω) and with z = ωh, a kick of b h is the matrix
+        [[1, 0], [−b z, 1]] and a drift of a h is [[1, a z], [0, 1]]; one step is their
+        product M(z) in step order, det M = 1. The step is stable (its powers bounded)
+        while |tr M(z)| < 2. The limit is the smallest z > 0 beyond which |tr M| exceeds 2:
+        the smallest positive root of tr M = ±2 after which |tr M| > 2 (a root where
+        |tr M| touches 2 and comes back, as for two Verlet steps at z = 2√2 where M = −I,
+        does not end the interval). tr M is a polynomial of degree 2s in z; its roots are
+        found by :func:`numpy.roots`.
+
+        Returns
+        -------
+        float
+            ωh_max for a step of h (s force evaluations); ωh_max / s per force evaluation.
+            Velocity Verlet (one stage) is 2; s Verlet steps of h/s (``rattle/2``,
+            ``rattle/3``) are 2s, the largest any s-stage splitting can have.
+
+        Examples
+        --------
+        >>> from openmm_alphaprk.integrators.splittings import splitting, two_stage
+        >>> round(two_stage(0.0).stability_limit(), 12)  # α = 0: one Verlet step of h
+        2.0
+        >>> [round(splitting(name).stability_limit(), 12) for name in ("rattle/2", "rattle/3")]
+        [4.0, 6.0]
+        >>> round(splitting("me2").stability_limit(), 4)  # 1.28 per force evaluation, Verlet's 2
+        2.5531
+        """
+        one, zero, z = Polynomial([1.0]), Polynomial([0.0]), Polynomial([0.0, 1.0])
+
+        def times(a: list[list[Polynomial]], b: list[list[Polynomial]]) -> list[list[Polynomial]]:
+            return [[a[i][0] * b[0][j] + a[i][1] * b[1][j] for j in range(2)] for i in range(2)]
+
+        step = [[one, zero], [zero, one]]
+        for j, b in enumerate(self.kicks):
+            step = times([[one, zero], [-b * z, one]], step)
+            if j < self.stages:
+                step = times([[one, self.drifts[j] * z], [zero, one]], step)
+        trace = step[0][0] + step[1][1]
+        roots = []
+        for edge in (trace - 2.0, trace + 2.0):
+            coefficients = edge.trim(1e-300).coef
+            for r in np.roots(coefficients[::-1]):
+                if abs(r.imag) <= 1e-6 * max(1.0, abs(r.real)) and r.real > 1e-9:
+                    roots.append(float(r.real))
+        roots.sort()
+        distinct = [r for i, r in enumerate(roots) if i == 0 or r - roots[i - 1] > 1e-6 * max(1.0, r)]
+        for i, r in enumerate(distinct):
+            after = 0.5 * (r + distinct[i + 1]) if i + 1 < len(distinct) else r + 0.1 * max(1.0, r)
+            if abs(trace(after)) > 2.0:
+                return r
+        return math.inf
 
     def listing(self) -> str:
         """One line: the name, the order, the kicks and drifts in step order."""
