@@ -7,6 +7,7 @@ block differs from what the data renders). The data are written by
 
 from __future__ import annotations
 
+import re
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -218,12 +219,96 @@ def repeats() -> str:
     return markdown_table(header, table)
 
 
+#: The stability scans on the page: (block name, data file, how the page names the system).
+STABILITY = (
+    ("stability tip3p-2nm", "stability_tip3p-2nm.json", "tip3p-2nm (rigid TIP3P, 774 atoms, PME)"),
+    (
+        "stability villin",
+        "stability_villin.json",
+        "villin (8,867 atoms, Amber14, HBonds, hydrogens 1 amu, PME)",
+    ),
+    (
+        "stability villin-h3",
+        "stability_villin-h3.json",
+        "villin-h3 (villin with hydrogens of 3 amu, its own equilibrated start)",
+    ),
+)
+#: The stability scan's rows as the page names them.
+STABILITY_ROWS = {
+    "rattle": "RATTLE (`rattle`)",
+    "split=1/4": "α = ¼, RATTLE at h/2 (`split=1/4`)",
+    "split-me": "minimum error, α = 0.3068 (`split-me`)",
+    "split-bcss": "BCSS, α = 0.2882 (`split-bcss`)",
+    "split3-me": "3-stage minimum error (`split3-me`)",
+    "split3-bcss": "3-stage BCSS (`split3-bcss`)",
+}
+
+
+def _first_unstable(row: dict) -> str:
+    """Return the first unstable step of a row and how its run ended."""
+    failed = [run for run in row["runs"] if not run["stable"]]
+    if not failed:
+        return "-"
+    first = min(failed, key=lambda run: run["h_fs"])
+    reason = first["reason"]
+    if reason.startswith("blew up"):
+        how = "NaN coordinates" if "NaN" in reason else "an OpenMM exception"
+    elif reason.startswith("|H"):
+        how = f"H over the threshold ({reason.split()[3]} kJ/mol/DOF)"
+    else:
+        how = reason
+    found = re.search(r"at step (\d+)", reason)
+    step = found.group(1) if found else first["steps_done"]
+    return f"{first['h_fs']:g}: {how} at step {step} of {first['steps']}"
+
+
+def stability_table(path: str, title: str) -> str:
+    """Render one stability scan: largest stable step per row, per evaluation, against RATTLE and theory."""
+    data, source = load(FOLDER + path)
+    header = [
+        "integrator",
+        "evaluations / step",
+        "largest stable h (fs)",
+        "per evaluation h/k (fs)",
+        "× RATTLE's h",
+        "linear prediction (fs)",
+        "max \\|H − E_ref\\|/DOF there (kJ/mol)",
+        "the first unstable h (fs)",
+    ]
+    table = []
+    for row in data["integrators"]:
+        h = row["largest_stable_fs"]
+        there = [run for run in row["runs"] if run["stable"] and run["h_fs"] == h]
+        table.append(
+            [
+                STABILITY_ROWS.get(row["integrator"], f"`{row['integrator']}`"),
+                f"{row['evaluations']:g}",
+                f"**{h:g}**",
+                f"{h / row['evaluations']:.3g}",
+                f"{row['ratio_to_rattle']:.2f}",
+                f"{row['predicted_fs']:.3g}",
+                sig(there[0]["max_per_dof"]) if there else "-",
+                _first_unstable(row),
+            ]
+        )
+    return (
+        f"**{title}** ({data['dof']:,} degrees of freedom; T = {data['time_ps']:g} ps, H every "
+        f"{data['every']} steps, threshold {data['threshold_kt']:g} kT = "
+        f"{data['threshold_kj_per_mol_per_dof']:.3f} kJ/mol per degree of freedom, edge to "
+        f"{data['resolution_fs']:g} fs); measured on {source.machine}, {source.date}; data "
+        f"`docs/data/{source.path}`\n\n" + markdown_table(header, table)
+    )
+
+
 def render() -> dict[Path, dict[str, str]]:
     """Every generated block of the page whose data file exists, by page and block name."""
     blocks = {name: survey_table(path) for name, path in SURVEYS if (DATA / FOLDER / path).is_file()}
     blocks["survey verdicts"] = survey_verdicts()
     blocks["per picosecond"] = per_picosecond()
     blocks["repeats"] = repeats()
+    for name, path, title in STABILITY:
+        if (DATA / FOLDER / path).is_file():
+            blocks[name] = stability_table(path, title)
     return {PAGE: blocks}
 
 
