@@ -165,17 +165,26 @@ class SplittingRow:
     energy: str
     positions: str
     steps: int
+    stable: str
     sources: list[Source]
 
 
 def splitting_row() -> SplittingRow:
     """Read the 2 fs splitting surveys: energy ratios per system, the span of position-error ratios."""
     found = [splitting.compare(path) for path in SPLITTING_2FS]
+    scans = [load(splitting.FOLDER + path) for _, path, _ in splitting.STABILITY]
+    ratios = [
+        row["ratio_to_rattle"]
+        for data, _ in scans
+        for row in data["integrators"]
+        if row["integrator"] == "split-me"
+    ]
     return SplittingRow(
         per_system([c.energy for c in found], lambda v: f"{v:.1f}"),
         span([r for c in found for r in c.positions], lambda v: f"{v:.2f}"),
         found[0].data["steps"],
-        [load(splitting.FOLDER + path)[1] for path in SPLITTING_2FS],
+        span(ratios, lambda v: f"{v:.2f}"),
+        [load(splitting.FOLDER + path)[1] for path in SPLITTING_2FS] + [source for _, source in scans],
     )
 
 
@@ -357,7 +366,8 @@ def integrators_table(a2: Accuracy, a4: Accuracy, md: dict, md_source: Source, g
             "`SplittingRattleIntegrator(h)` (`split-me`): α-RATTLE's quadrature as a kick-drift splitting "
             "with constraints, the minimum-error α",
             f"2 evaluations; RMS(H − E_ref) {split.energy}× below RATTLE at h/2 (tip3p-2nm / villin, "
-            f"{split.steps} steps); position error {split.positions}× RATTLE at h/2's. With `+rescale` "
+            f"{split.steps} steps); position error {split.positions}× RATTLE at h/2's; stable to "
+            f"{split.stable}× RATTLE's largest step, where RATTLE at h/2 reaches 2×. With `+rescale` "
             "H is held at round-off on the same trajectory, which `rattle+rescale` at h/2 also gives "
             "([the explicit family](splitting.md))",
         ],
