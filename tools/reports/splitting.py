@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from tools.reports.markdown import generator_main, markdown_table, stale_blocks
-from tools.reports.numbers import sig, times
+from tools.reports.numbers import sig, times, tolerance
 from tools.reports.sources import DATA, DOCS, ROOT, load
 
 PAGE = DOCS / "splitting.md"
@@ -52,6 +52,8 @@ SURVEYS = (
     ("survey villin 2 fs second", "villin_2fs_second.json"),
     ("survey dhfr 2 fs", "dhfr_2fs.json"),
     ("survey tip3p-2nm 2 fs order 4", "tip3p-2nm_2fs_order4.json"),
+    ("energy mode tip3p-2nm", "energy_mode_tip3p-2nm_2fs.json"),
+    ("energy mode villin", "energy_mode_villin_2fs.json"),
     ("survey tip3p-2nm 4 fs", "tip3p-2nm_4fs.json"),
     ("survey villin 4 fs", "villin_4fs_hmr3.json"),
     ("survey dhfr 4 fs", "dhfr_4fs_hmr3.json"),
@@ -79,6 +81,19 @@ def _title(data: dict) -> str:
     return title + "**"
 
 
+def _label(row: str) -> str:
+    """Return how the page names a row of a survey or of the energy-mode measurement."""
+    if row in ROWS:
+        return ROWS[row]
+    energy = re.fullmatch(r"split-energy tol ([0-9.e+-]+), <= (\d+) trials", row)
+    if energy:
+        return f"energy mode, tol {tolerance(float(energy.group(1)))}·\\|E_ref\\|, ≤ {energy.group(2)} trials"
+    named = re.fullmatch(r"([a-z0-9+=/-]+)( at h/\d+)?", row)
+    if named and not row.startswith("rattle "):
+        return f"`{named.group(1)}`{named.group(2) or ''}"
+    return row.replace("rattle at", "RATTLE at")
+
+
 def survey_table(path: str) -> str:
     """Render one survey: evaluations per step, RMS(H − E_ref), position errors at the horizons, per row."""
     data, source = load(FOLDER + path)
@@ -90,7 +105,7 @@ def survey_table(path: str) -> str:
         errors = " / ".join(sig(e) for e in row["position_rms"])
         if row.get("blew_up_at_step"):
             errors += f" (blew up at step {row['blew_up_at_step']})"
-        label = ROWS.get(row["row"], row["row"])
+        label = _label(row["row"])
         table.append([label, f"{row['evaluations']:g}", sig(row["rms_residual"], 3), errors])
     return (
         f"{_title(data)} — {data['steps']} steps from the start `{data.get('start', data['system'])}`, "
