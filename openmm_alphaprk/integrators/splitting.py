@@ -115,9 +115,10 @@ class SplittingRattleIntegrator(_StepProgram):
     they measured: docs/splitting.md.
 
     α = ¼ is two RATTLE steps of h/2; the default, α = 0.306817, is the minimum-error
-    two-stage splitting (McLachlan 1995), which on water and villin at 2 fs holds the energy
-    2.9× and 4.6× better than RATTLE at h/2 for the same two force evaluations, with up to
-    1.13× its position error (docs/splitting.md).
+    two-stage splitting (McLachlan 1995), which minimises the leading energy error term at
+    the same two force evaluations but has 0.64 of the stability interval of two RATTLE
+    steps of h/2 on a harmonic oscillator (:meth:`~.splittings.Splitting.stability_limit`); what it
+    measured against RATTLE is in docs/splitting.md.
 
     Each step starts with OpenMM's update-context-state step, as a ``VerletIntegrator``
     step does. Every force is taken at constrained positions, so virtual sites are right on
