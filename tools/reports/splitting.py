@@ -315,12 +315,46 @@ def stability_table(path: str, title: str) -> str:
     )
 
 
+#: The step-time measurements on the page: (block name, data file).
+COST = (
+    ("cost cpu", "cost_cpu_tip3p-2nm.json"),
+    ("cost opencl", "cost_opencl_tip3p-2nm.json"),
+)
+
+
+def cost_table(path: str) -> str:
+    """Render one ``bench cost`` run: step time against RATTLE's, per force evaluation, ns/day."""
+    data, source = load(FOLDER + path)
+    header = ["integrator", "evaluations / step", "ms/step", "× RATTLE's step", "per evaluation", "ns/day"]
+    table = [
+        [
+            row["name"],
+            f"{row['force_evaluations_per_step']:g}",
+            f"{row['ms_per_step']:.3g}",
+            f"{row['time_ratio']:.2f}",
+            f"{row['ratio_per_evaluation']:.2f}",
+            f"{row['ns_per_day']:.3g}",
+        ]
+        for row in data["rows"]
+    ]
+    precision = data.get("precision") or "the platform's"
+    return (
+        f"**{data['system']} ({data['atoms']:,} atoms), {data['timestep_fs']:g} fs, {data['platform']} "
+        f"platform, precision {precision}** — `alphaprk bench cost`, every row in one run, rounds "
+        f"interleaved; measured on {source.machine}, {source.date}, with other runs on its two cores; "
+        f"data `docs/data/{source.path}`\n\n" + markdown_table(header, table)
+    )
+
+
 def render() -> dict[Path, dict[str, str]]:
     """Every generated block of the page whose data file exists, by page and block name."""
     blocks = {name: survey_table(path) for name, path in SURVEYS if (DATA / FOLDER / path).is_file()}
     blocks["survey verdicts"] = survey_verdicts()
     blocks["per picosecond"] = per_picosecond()
     blocks["repeats"] = repeats()
+    for name, path in COST:
+        if (DATA / FOLDER / path).is_file():
+            blocks[name] = cost_table(path)
     for name, path, title in STABILITY:
         if (DATA / FOLDER / path).is_file():
             blocks[name] = stability_table(path, title)
