@@ -33,8 +33,10 @@ import argparse
 import json
 import math
 import platform
+import sys
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 import openmm as mm
@@ -53,6 +55,9 @@ from openmm_alphaprk.runs.accuracy import (
 )
 from openmm_alphaprk.runs.integrator_names import at_divisor
 from openmm_alphaprk.systems import prepare_system
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # the survey beside it, imported or run
+from splitting_survey import row_entry  # noqa: E402
 
 #: The minimum-error member's α: the first trial of every step.
 ALPHA_ME = MINIMUM_ERROR2.alpha
@@ -284,22 +289,6 @@ def run_energy_mode(prepared, h: float, horizons, platform_name: str = "CPU", **
     )
     controller.in_program_residuals = np.array(in_program)
     return trajectory, controller, counted
-
-
-def row_entry(label, name, divisor, run, errors, started, **extra):
-    return {
-        "row": label,
-        "integrator": name,
-        "divisor": divisor,
-        "evaluations": run.force_evaluations_per_step,
-        "rms_residual": rms(run.residuals),
-        "horizons": [e.steps for e in errors],
-        "position_rms": [e.position_rms for e in errors],
-        "velocity_rms": [e.velocity_rms for e in errors],
-        "blew_up_at_step": run.blew_up_at_step,
-        "seconds": time.perf_counter() - started,
-        **extra,
-    }
 
 
 def parse_rows(specs):

@@ -68,6 +68,23 @@ def row_integrator(name: str, h: float, divisor: int) -> SubStepped:
     return at_divisor(name, h, divisor)
 
 
+def row_entry(label: str, name: str, divisor: int, run, errors, started: float, **extra) -> dict:
+    """Return a row of the survey's JSON: cost, RMS(H − E_ref), errors at the horizons, ``extra``."""
+    return {
+        "row": label,
+        "integrator": name,
+        "divisor": divisor,
+        "evaluations": run.force_evaluations_per_step,
+        "rms_residual": rms(run.residuals),
+        "horizons": [e.steps for e in errors],
+        "position_rms": [e.position_rms for e in errors],
+        "velocity_rms": [e.velocity_rms for e in errors],
+        "blew_up_at_step": run.blew_up_at_step,
+        "seconds": time.perf_counter() - started,
+        **extra,
+    }
+
+
 def parser() -> argparse.ArgumentParser:
     """Return the command line's parser."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -118,19 +135,7 @@ def main(argv: list[str] | None = None) -> None:
             platform=args.platform,
             properties=properties,
         )
-        errors = horizon_errors(run, ref, box, args.timestep)
-        entry = {
-            "row": label,
-            "integrator": name,
-            "divisor": divisor,
-            "evaluations": run.force_evaluations_per_step,
-            "rms_residual": rms(run.residuals),
-            "horizons": [e.steps for e in errors],
-            "position_rms": [e.position_rms for e in errors],
-            "velocity_rms": [e.velocity_rms for e in errors],
-            "blew_up_at_step": run.blew_up_at_step,
-            "seconds": time.perf_counter() - started,
-        }
+        entry = row_entry(label, name, divisor, run, horizon_errors(run, ref, box, args.timestep), started)
         rows.append(entry)
         print(
             f"{label:16} evals {entry['evaluations']:5.2f} RMS {entry['rms_residual']:.3g}  x err "
