@@ -73,9 +73,11 @@ def _rows(data: dict) -> dict[str, dict]:
     return {row["row"]: row for row in data["rows"]}
 
 
-def _title(data: dict) -> str:
+def _title(data: dict, path: str = "") -> str:
     name = SYSTEMS.get(data["system"], data["system"])
     title = f"**{name}, {data['timestep_fs']:g} fs"
+    if path.endswith("_second.json"):
+        title += " (the second run)"
     if data.get("hydrogen_mass_amu"):
         again = "-h" in data.get("start", "")
         how = "start equilibrated with them" if again else "repartitioned in the start, not re-equilibrated"
@@ -110,7 +112,7 @@ def survey_table(path: str) -> str:
         label = _label(row["row"])
         table.append([label, f"{row['evaluations']:g}", sig(row["rms_residual"], 3), errors])
     return (
-        f"{_title(data)} — {data['steps']} steps from the start `{data.get('start', data['system'])}`, "
+        f"{_title(data, path)} — {data['steps']} steps from the start `{data.get('start', data['system'])}`, "
         f"reference {data['reference'].split(',')[0]}; "
         f"measured on {source.machine}, {source.date}; data `docs/data/{source.path}`\n\n"
         + markdown_table(header, table)
@@ -164,7 +166,7 @@ def survey_verdicts() -> str:
         h = data["timestep_fs"]
         goal = ENERGY_GOAL.get(h) if data["system"] in GOAL_SYSTEMS.get(h, ()) else None
         line = (
-            f"- {_title(data)}: `split-me` {found.energy:.2f}× below RATTLE at h/2 in RMS(H − E_ref)"
+            f"- {_title(data, path)}: `split-me` {found.energy:.2f}× below RATTLE at h/2 in RMS(H − E_ref)"
             + (f" (goal ≥ {goal:g}×: **{'met' if found.energy >= goal else 'missed'}**)" if goal else "")
             + f"; position error {' / '.join(f'{r:.2f}' for r in found.positions)} × RATTLE at h/2's"
         )
