@@ -12,6 +12,7 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
+from tools.reports.long_runs import long_table
 from tools.reports.markdown import generator_main, markdown_table, stale_blocks
 from tools.reports.numbers import sig, times, tolerance
 from tools.reports.sources import DATA, DOCS, ROOT, load
@@ -319,6 +320,8 @@ def stability_table(path: str, title: str) -> str:
     )
 
 
+#: The long runs on the page: (block name, data file of ``alphaprk bench long``).
+LONG = (("long 2 fs", "long_tip3p-2nm_2fs.json"), ("long 1 fs", "long_tip3p-2nm_1fs.json"))
 #: The step-time measurements on the page: (block name, data file).
 COST = (
     ("cost cpu", "cost_cpu_tip3p-2nm.json"),
@@ -359,6 +362,9 @@ def render() -> dict[Path, dict[str, str]]:
     for name, path in COST:
         if (DATA / FOLDER / path).is_file():
             blocks[name] = cost_table(path)
+    for name, path in LONG:
+        if (DATA / FOLDER / path).is_file():
+            blocks[name] = long_table(FOLDER + path, speed=False)
     for name, path, title in STABILITY:
         if (DATA / FOLDER / path).is_file():
             blocks[name] = stability_table(path, title)
