@@ -145,6 +145,21 @@ def residuals_on(problem, integrator: mm.Integrator, steps: int, platform=REFERE
     return observables.energy_residuals(context, integrator, steps).residuals
 
 
+def counting(system: mm.System) -> tuple[mm.System, list[int]]:
+    """Return a copy of ``system`` with a force that counts the evaluations of the whole System."""
+    copy = mm.XmlSerializer.deserialize(mm.XmlSerializer.serialize(system))
+    calls = [0]
+
+    def count(state):
+        calls[0] += 1
+        return 0.0, np.zeros((1, 3))
+
+    counter = mm.PythonForce(count)
+    counter.setParticles([0])
+    copy.addForce(counter)
+    return copy, calls
+
+
 def positions_of(context) -> np.ndarray:
     return context.getState(getPositions=True).getPositions(asNumpy=True).value_in_unit(unit.nanometers)
 

@@ -4,7 +4,7 @@ import numpy as np
 import openmm as mm
 import openmm.unit as unit
 import pytest
-from conftest import REFERENCE, constraint_errors, positions_of, total_energy, velocities_of
+from conftest import REFERENCE, constraint_errors, counting, positions_of, total_energy, velocities_of
 from platform_options import configured, platform_and_properties
 
 from openmm_alphaprk import (
@@ -230,25 +230,10 @@ def test_survives_serialization_and_restore(spinning_cluster):
     assert abs(total_energy(context) - _kj(restored.reference_energy)) < 1e-8
 
 
-def _counting(system):
-    """A copy of ``system`` with a force that counts the evaluations of the whole System."""
-    copy = mm.XmlSerializer.deserialize(mm.XmlSerializer.serialize(system))
-    calls = [0]
-
-    def count(state):
-        calls[0] += 1
-        return 0.0, np.zeros((1, 3))
-
-    counter = mm.PythonForce(count)
-    counter.setParticles([0])
-    copy.addForce(counter)
-    return copy, calls
-
-
 @pytest.mark.parametrize("spec", ["Reference", "CPU", *configured()])
 def test_one_force_and_energy_evaluation_per_step_on_every_platform(water_box, spec):
     """Counted by OpenMM, not by the program: forces and energy at x1 come from one evaluation."""
-    system, calls = _counting(water_box.system)
+    system, calls = counting(water_box.system)
     if ":" in spec:
         platform, properties = platform_and_properties(spec)
     else:
@@ -541,7 +526,7 @@ def test_a_periodic_box_sums_the_kinetic_energy_once_per_interval(order):
 
 def test_one_force_evaluation_per_step_with_an_interval(water_box):
     """Counted by OpenMM: at a rescaling step the energy comes with the step's force (CPU platform)."""
-    system, calls = _counting(water_box.system)
+    system, calls = counting(water_box.system)
     integrator = RattleRescaleIntegrator(H, rescale_interval=5)
     context = _context(
         system, integrator, water_box.positions, water_box.velocities, mm.Platform.getPlatformByName("CPU")

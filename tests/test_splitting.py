@@ -15,7 +15,7 @@ import numpy as np
 import openmm as mm
 import openmm.unit as unit
 import pytest
-from conftest import REFERENCE, make_context, positions_of, velocities_of
+from conftest import REFERENCE, counting, make_context, positions_of, velocities_of
 from test_step_programs_golden import describe
 
 from openmm_alphaprk import (
@@ -250,16 +250,7 @@ def test_a_composition_of_a_splitting_is_one_splitting_of_its_order_backwards_st
 def test_openmm_counts_the_stages_force_evaluations_per_step(platform, rescaled, name):
     """Counted by OpenMM (a PythonForce that counts its calls): s per step, the first one the last step's."""
     problem, x0, v0 = water_cluster(3)
-    system = to_openmm_system(problem)
-    calls = [0]
-
-    def count(state):
-        calls[0] += 1
-        return 0.0, np.zeros((1, 3))
-
-    counter = mm.PythonForce(count)
-    counter.setParticles([0])
-    system.addForce(counter)
+    system, calls = counting(to_openmm_system(problem))
     if rescaled:
         integrator = RattleRescaleIntegrator(0.002, splitting=name)
     else:

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import openmm as mm
 import pytest
-from conftest import make_context, positions_of, velocities_of
+from conftest import counting, make_context, positions_of, velocities_of
 
 from openmm_alphaprk import RattleIntegrator, SplittingRattleIntegrator
 from openmm_alphaprk.observables import total_energy
@@ -93,16 +93,7 @@ def test_a_retry_is_the_trial_from_the_step_start_and_the_best_trial_is_kept(pro
 def test_a_trial_costs_two_force_evaluations_and_the_return_to_the_best_none(prototype, platform):
     """Counted by OpenMM (a PythonForce that counts its calls): the start's force is kept, not recomputed."""
     problem, x0, v0 = water_cluster(3)
-    system = to_openmm_system(problem)
-    calls = [0]
-
-    def count(state):
-        calls[0] += 1
-        return 0.0, np.zeros((1, 3))
-
-    counter = mm.PythonForce(count)
-    counter.setParticles([0])
-    system.addForce(counter)
+    system, calls = counting(to_openmm_system(problem))
     trial = prototype.AlphaGlobalSplitting(0.002)
     context = make_context(
         system, trial, x0.reshape(-1, 3), v0.reshape(-1, 3), mm.Platform.getPlatformByName(platform)
