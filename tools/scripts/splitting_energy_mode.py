@@ -56,9 +56,6 @@ from openmm_alphaprk.runs.accuracy import (
 from openmm_alphaprk.runs.integrator_names import at_divisor
 from openmm_alphaprk.systems import prepare_system
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))  # the survey beside it, imported or run
-from splitting_survey import row_entry  # noqa: E402
-
 #: The minimum-error member's α: the first trial of every step.
 ALPHA_ME = MINIMUM_ERROR2.alpha
 HORIZONS = (5, 20, 50)
@@ -320,6 +317,9 @@ DEFAULT_ROWS = (
 
 
 def main(argv: list[str] | None = None) -> None:
+    sys.path.insert(0, str(Path(__file__).resolve().parent))  # the survey beside this script
+    from splitting_survey import row_entry
+
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--system", default="tip3p-2nm")
     parser.add_argument("--timestep", type=float, default=2.0, help="fs")
