@@ -9,7 +9,7 @@ refused by the energy mode.
 import numpy as np
 import openmm.unit as unit
 import pytest
-from conftest import make_context, positions_of, velocities_of
+from conftest import PENDULUM_T_END, make_context, positions_of, velocities_of
 
 from openmm_alphaprk import AlphaRattleEnergyIntegrator, AlphaRattleIntegrator
 from openmm_alphaprk.integrators.compositions import COMPOSITIONS, TRIPLE_JUMP, Composition, composition
@@ -17,27 +17,14 @@ from openmm_alphaprk.observables import convergence_order
 from openmm_alphaprk.reference import (
     composition_step,
     integrate,
-    planar_pendulum,
-    planar_pendulum_start,
     rigid_diatomics,
     to_openmm_system,
     water_cluster,
 )
 
-T_END = 2.0
+T_END = PENDULUM_T_END
 #: Steps over T_END: inside every set's asymptotic range, errors far above the reference's (~1e-11).
 COUNTS = (16, 32)
-
-
-@pytest.fixture(scope="module")
-def pendulum():
-    problem = planar_pendulum(kappa=2.0)
-    x0, v0 = planar_pendulum_start(1.0)
-    # sixth order at 256 steps: 3e-12 from 128 steps (more steps only add SHAKE round-off)
-    x_ref, v_ref = integrate(
-        problem, x0, v0, T_END / 256, 256, 0.0, step=composition_step, composition="mclachlan9"
-    )
-    return problem, x0, v0, np.concatenate([x_ref, v_ref])
 
 
 def _error(pendulum, chosen, n, alpha=0.0):

@@ -15,7 +15,15 @@ import numpy as np
 import openmm as mm
 import openmm.unit as unit
 import pytest
-from conftest import REFERENCE, counting, make_context, positions_of, velocities_of
+from conftest import (
+    PENDULUM_T_END,
+    REFERENCE,
+    counting,
+    invariant_errors,
+    make_context,
+    positions_of,
+    velocities_of,
+)
 from test_step_programs_golden import describe
 
 from openmm_alphaprk import (
@@ -29,11 +37,8 @@ from openmm_alphaprk.integrators.splittings import SPLITTINGS, Splitting, compos
 from openmm_alphaprk.observables import convergence_order
 from openmm_alphaprk.reference import (
     alpha_rattle_step,
-    angular_momentum,
     composition_step,
     integrate,
-    planar_pendulum,
-    planar_pendulum_start,
     rigid_diatomics,
     splitting_step,
     symplecticity_defect,
@@ -42,7 +47,7 @@ from openmm_alphaprk.reference import (
 )
 from openmm_alphaprk.runs.integrator_names import label, make_integrator, parse_integrator
 
-T_END = 2.0
+T_END = PENDULUM_T_END
 COUNTS = (16, 32, 64)
 GOLDEN = Path(__file__).parent / "golden" / "splitting_programs.txt"
 
@@ -66,17 +71,6 @@ PROGRAMS = {
         0.002, splitting="me3", rescale_interval=10
     ),
 }
-
-
-@pytest.fixture(scope="module")
-def pendulum():
-    """Pendulum with a horizontal spring (position-dependent force), and a sixth-order reference."""
-    problem = planar_pendulum(kappa=2.0)
-    x0, v0 = planar_pendulum_start(1.0)
-    x_ref, v_ref = integrate(
-        problem, x0, v0, T_END / 256, 256, 0.0, step=composition_step, composition="mclachlan9"
-    )
-    return problem, x0, v0, np.concatenate([x_ref, v_ref])
 
 
 def _error(pendulum, n: int, **options) -> float:
@@ -304,32 +298,11 @@ def test_water_cluster_keeps_constraints_and_linear_and_angular_momentum(name):
     problem, x0, v0 = water_cluster(8, spacing=0.3, seed=5)
     integrator = SplittingRattleIntegrator(0.002, splitting=name, constraint_tolerance=1e-12)
     ctx = make_context(to_openmm_system(problem), integrator, x0.reshape(-1, 3), v0.reshape(-1, 3))
-    ctx.applyConstraints(1e-12)
-    ctx.applyVelocityConstraints(1e-12)
-    x, v = positions_of(ctx).ravel(), velocities_of(ctx).ravel()
-    l0 = angular_momentum(problem, x, v)
-    masses = problem.masses.reshape(-1, 3)[:, 0]
-    system = ctx.getSystem()
-    bonds = []
-    for k in range(system.getNumConstraints()):
-        i, j, d = system.getConstraintParameters(k)
-        bonds.append((i, j, d.value_in_unit(unit.nanometers)))
-
-    def constraint_error(x):
-        return max(abs(np.linalg.norm(x[j] - x[i]) - d) / d for i, j, d in bonds)
-
-    c_start = constraint_error(positions_of(ctx))
-    l_err = p_err = c_err = 0.0
-    for _ in range(15):
-        integrator.step(10)
-        x, v = positions_of(ctx), velocities_of(ctx)
-        l_err = max(l_err, np.linalg.norm(angular_momentum(problem, x.ravel(), v.ravel()) - l0))
-        p_err = max(p_err, np.linalg.norm(masses @ v))
-        c_err = max(c_err, constraint_error(x))
-    assert np.linalg.norm(l0) > 1.0
-    assert l_err < 1e-9
-    assert p_err < 1e-10
-    assert c_err < c_start + 1e-10
+    found = invariant_errors(problem, ctx, integrator)
+    assert found["l0"] > 1.0
+    assert found["l_err"] < 1e-9
+    assert found["p_err"] < 1e-10
+    assert found["c_err"] < found["c_start"] + 1e-10
 
 
 def test_restored_from_xml_with_its_splitting():
