@@ -318,7 +318,7 @@ DEFAULT_ROWS = (
 
 def main(argv: list[str] | None = None) -> None:
     sys.path.insert(0, str(Path(__file__).resolve().parent))  # the survey beside this script
-    from splitting_survey import row_entry
+    from splitting_survey import print_row, row_entry
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--system", default="tip3p-2nm")
@@ -354,14 +354,6 @@ def main(argv: list[str] | None = None) -> None:
     print(f"reference RATTLE at h/64: {time.perf_counter() - started:.0f} s", flush=True)
     rows, summaries = [], {}
 
-    def show(entry):
-        print(
-            f"{entry['row']:36} evals {entry['evaluations']:5.2f} RMS {entry['rms_residual']:.3g}  x err "
-            + " / ".join(f"{e:.2g}" for e in entry["position_rms"])
-            + (f"  blew up at step {entry['blew_up_at_step']}" if entry["blew_up_at_step"] else ""),
-            flush=True,
-        )
-
     for spec in args.energy_modes:
         tolerance, _, trials = spec.partition(":")
         options = {
@@ -392,7 +384,7 @@ def main(argv: list[str] | None = None) -> None:
             fraction_missed=summaries[label]["fraction_missed"],
         )
         rows.append(entry)
-        show(entry)
+        print_row(entry, 36)
         print(json.dumps(summaries[label]), flush=True)
     for label, name, divisor in parse_rows(args.rows):
         started = time.perf_counter()
@@ -401,7 +393,7 @@ def main(argv: list[str] | None = None) -> None:
         )
         entry = row_entry(label, name, divisor, run, horizon_errors(run, ref, box, args.timestep), started)
         rows.append(entry)
-        show(entry)
+        print_row(entry, 36)
     if args.json:
         with open(args.json, "w") as handle:
             json.dump(

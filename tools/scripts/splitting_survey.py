@@ -85,6 +85,16 @@ def row_entry(label: str, name: str, divisor: int, run, errors, started: float, 
     }
 
 
+def print_row(entry: dict, width: int) -> None:
+    """Print a row of :func:`row_entry` as one line: cost, RMS(H − E_ref), position errors."""
+    print(
+        f"{entry['row']:{width}} evals {entry['evaluations']:5.2f} RMS {entry['rms_residual']:.3g}  x err "
+        + " / ".join(f"{e:.2g}" for e in entry["position_rms"])
+        + (f"  blew up at step {entry['blew_up_at_step']}" if entry["blew_up_at_step"] else ""),
+        flush=True,
+    )
+
+
 def parser() -> argparse.ArgumentParser:
     """Return the command line's parser."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -137,12 +147,7 @@ def main(argv: list[str] | None = None) -> None:
         )
         entry = row_entry(label, name, divisor, run, horizon_errors(run, ref, box, args.timestep), started)
         rows.append(entry)
-        print(
-            f"{label:16} evals {entry['evaluations']:5.2f} RMS {entry['rms_residual']:.3g}  x err "
-            + " / ".join(f"{e:.2g}" for e in entry["position_rms"])
-            + (f"  blew up at step {run.blew_up_at_step}" if run.blew_up_at_step else ""),
-            flush=True,
-        )
+        print_row(entry, 16)
     if args.json:
         with open(args.json, "w") as handle:
             json.dump(
