@@ -138,13 +138,13 @@ def system_to_prepare(name: str, args: argparse.Namespace) -> str | SystemDefini
         For ``--temperature`` where no velocities are drawn at it (:func:`check_temperature`).
     """
     if is_system_file(name):
-        system: str | SystemDefinition = file_definition(name, file_options(args))
-    elif getattr(args, "hydrogen_mass", None) is not None:
-        system = load_definition(name).with_hydrogen_mass(args.hydrogen_mass)
-    else:
-        system = name
-    check_temperature(system, args)
-    return system
+        system = file_definition(name, file_options(args))
+        check_temperature(system, args)
+        return system
+    check_temperature(name, args)  # a named system: its start's velocities are its definition's
+    if getattr(args, "hydrogen_mass", None) is not None:
+        return load_definition(name).with_hydrogen_mass(args.hydrogen_mass)
+    return name
 
 
 def check_temperature(system: str | SystemDefinition, args: argparse.Namespace) -> None:
@@ -162,11 +162,9 @@ def check_temperature(system: str | SystemDefinition, args: argparse.Namespace) 
     kelvin = getattr(args, "temperature", None)
     if kelvin is None:
         return
-    if not isinstance(system, SystemDefinition) or "files" not in system.build:  # a named system
-        definition = system if isinstance(system, SystemDefinition) else load_definition(system)
-        named = str(system if isinstance(system, str) else args.system)
-        toml = Path(named) if named.endswith(".toml") else DEFINITIONS_DIR / f"{named}.toml"
-        system = named
+    if not isinstance(system, SystemDefinition):
+        definition = load_definition(system)
+        toml = Path(system) if str(system).endswith(".toml") else DEFINITIONS_DIR / f"{system}.toml"
         raise DefinitionError(
             f"--temperature {kelvin:g} K does not apply to {system!r}: a named system starts from the state "
             f"its definition makes (equilibration.temperature_K = "

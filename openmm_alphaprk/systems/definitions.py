@@ -69,7 +69,6 @@ _BUILD_KEYS: dict[str, dict[str, type | tuple[type, ...]]] = {
     "water_cluster": {"water_model": str, "radius_nm": (int, float)},
     "pdb": {"pdb": str, "cutoff_nm": (int, float)},
 }
-_OPTIONAL_BUILD_KEYS: dict[str, tuple[str, ...]] = {"pdb": ("hydrogen_mass_amu",)}
 _EQUILIBRATION_KEYS: dict[str, type | tuple[type, ...]] = {
     "seed": int,
     "temperature_K": (int, float),
@@ -321,18 +320,12 @@ def _check_built_kind(name: str, kind: str, build: dict[str, Any]) -> None:
                 raise DefinitionError(
                     f"system {name!r}: build.{key} must be a positive number, got {value!r}."
                 )
-    mass = build.get("hydrogen_mass_amu")
-    if mass is not None:
-        if "hydrogen_mass_amu" not in _OPTIONAL_BUILD_KEYS.get(kind, ()):
-            raise DefinitionError(
-                f"system {name!r}: build.hydrogen_mass_amu applies to a 'pdb' kind (a solute's hydrogens); "
-                f"a {kind!r} is water only, whose rigid hydrogens are left alone."
-            )
-        if isinstance(mass, bool) or not isinstance(mass, (int, float)) or not 1.0 <= mass <= 4.0:
-            raise DefinitionError(
-                f"system {name!r}: build.hydrogen_mass_amu {mass!r} must be a number of 1–4 amu (3 or 4 is "
-                "usual for a 4 fs step)."
-            )
+    if build.get("hydrogen_mass_amu") is not None and kind != "pdb":
+        raise DefinitionError(
+            f"system {name!r}: build.hydrogen_mass_amu applies to a 'pdb' kind (a solute's hydrogens); "
+            f"a {kind!r} is water only, whose rigid hydrogens are left alone."
+        )
+    _check_hydrogen_mass(name, build.get("hydrogen_mass_amu"))
     if "switch_distance_nm" in build and not build["switch_distance_nm"] < build.get("cutoff_nm", 0):
         raise DefinitionError(
             f"system {name!r}: build.switch_distance_nm must be below cutoff_nm (and needs a cutoff)."
@@ -341,6 +334,17 @@ def _check_built_kind(name: str, kind: str, build: dict[str, Any]) -> None:
         raise DefinitionError(
             f"system {name!r}: cutoff_nm {build['cutoff_nm']} must be below half the box edge "
             f"({build['box_edge_nm'] / 2} nm); use a larger box or a shorter cutoff."
+        )
+
+
+def _check_hydrogen_mass(name: str, mass: object) -> None:
+    """Refuse a ``build.hydrogen_mass_amu`` that is not a number of 1–4 amu (None: none asked)."""
+    if mass is None:
+        return
+    if isinstance(mass, bool) or not isinstance(mass, (int, float)) or not 1.0 <= mass <= 4.0:
+        raise DefinitionError(
+            f"system {name!r}: hydrogen mass {mass!r} amu is outside 1–4 amu (3 or 4 is usual for a 4 fs "
+            "step)."
         )
 
 
@@ -558,11 +562,7 @@ def check_file_build(name: str, build: dict[str, Any], base: Path | None = None)
             f"system {name!r}: constraints {build['constraints']!r}; "
             f"choose one of {sorted(CONSTRAINT_CHOICES)}."
         )
-    mass = build.get("hydrogen_mass_amu")
-    if mass is not None and not 1.0 <= float(mass) <= 4.0:
-        raise DefinitionError(
-            f"system {name!r}: hydrogen mass {mass} amu is outside 1–4 amu (3 or 4 is usual for a 4 fs step)."
-        )
+    _check_hydrogen_mass(name, build.get("hydrogen_mass_amu"))
     box = build.get("box_nm")
     if box is not None and (len(box) != 3 or not all(float(edge) > 0 for edge in box)):
         raise DefinitionError(f"system {name!r}: box_nm must be three positive edges in nm, got {box!r}.")
