@@ -184,7 +184,7 @@ def splitting_row() -> SplittingRow:
         span([r for c in found for r in c.positions], lambda v: f"{v:.2f}"),
         found[0].data["steps"],
         span(ratios, lambda v: f"{v:.2f}"),
-        [load(splitting.FOLDER + path)[1] for path in SPLITTING_2FS] + [source for _, source in scans],
+        [c.source for c in found] + [source for _, source in scans],
     )
 
 

@@ -15,7 +15,7 @@ from pathlib import Path
 from tools.reports.long_runs import long_table
 from tools.reports.markdown import generator_main, markdown_table, stale_blocks
 from tools.reports.numbers import sig, times, tolerance
-from tools.reports.sources import DATA, DOCS, ROOT, load
+from tools.reports.sources import DATA, DOCS, ROOT, Source, load
 
 PAGE = DOCS / "splitting.md"
 FOLDER = "splitting/"
@@ -125,6 +125,7 @@ class Comparison:
     """The minimum-error member against RATTLE at h/2 in one survey (ratios > 1: the member better)."""
 
     data: dict
+    source: Source
     energy: float
     positions: tuple[float, ...]
     rescaled_fraction: float | None
@@ -138,7 +139,7 @@ class Comparison:
 
 def compare(path: str) -> Comparison | None:
     """Return `split-me` against RATTLE at h/2 in the survey ``path`` (None without both rows)."""
-    data, _ = load(FOLDER + path)
+    data, source = load(FOLDER + path)
     rows = _rows(data)
     me, half = rows.get("split-me"), rows.get("RATTLE at h/2")
     if me is None or half is None:
@@ -149,6 +150,7 @@ def compare(path: str) -> Comparison | None:
         fraction = rescaled["rms_residual"] / rattle["rms_residual"]
     return Comparison(
         data,
+        source,
         half["rms_residual"] / me["rms_residual"],
         tuple(a / b for a, b in zip(me["position_rms"], half["position_rms"])),
         fraction,
