@@ -608,3 +608,32 @@ def test_an_interval_on_a_name_that_cannot_take_it_is_refused(bad):
 
     with pytest.raises(UnknownIntegratorError, match="rattle\\+rescale@10"):
         parse_integrator(bad)
+
+
+def test_the_scalings_statistics_are_what_each_step_did_and_shrink_as_rattles_error(spinning_cluster):
+    """mean/RMS of s − 1 and the energy removed, against s and H read after every step; h² scaling."""
+    system, x, v = spinning_cluster
+    shrink = []
+    for h in (H, H / 2):
+        integrator = RattleRescaleIntegrator(h)
+        context = _context(system, integrator, x, v)
+        integrator.check_context(context)
+        steps = int(round(0.2 / h))
+        changes, residuals = [], []
+        for _ in range(steps):
+            integrator.step(1)
+            changes.append(integrator.getGlobalVariableByName("velocity_scale") - 1)
+            residuals.append(integrator.getGlobalVariableByName("rattle_residual"))
+        totals = integrator.rescale_totals()
+        changes, residuals = np.array(changes), np.array(residuals)
+        assert totals["rescalings"] == steps
+        assert totals["mean_scale_change"] == pytest.approx(changes.mean(), rel=1e-9, abs=1e-15)
+        assert totals["rms_scale_change"] == pytest.approx(rms(changes), rel=1e-9)
+        assert totals["removed_energy"] == pytest.approx(residuals.sum(), rel=1e-9, abs=1e-12)
+        simulated_ns = steps * h / 1000
+        added = -residuals.sum() / simulated_ns
+        assert totals["added_energy_per_ns"] == pytest.approx(added, rel=1e-9, abs=1e-9)
+        assert 0 < totals["rms_scale_change"] <= totals["max_abs_scale_change"]
+        shrink.append(totals["rms_scale_change"])
+    # s − 1 removes one RATTLE step's energy error, O(h³): 8x smaller at h/2 (measured 8.1)
+    assert 6 < shrink[0] / shrink[1] < 10

@@ -315,7 +315,10 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
             "no_factor",
             RATTLE_RESIDUAL,
             RESCALE_HALTED,
+            "sum_rattle_residual",
             "sum_rattle_residual_squared",
+            "sum_scale_change",
+            "sum_scale_change_squared",
             "max_abs_scale_change",
             "sum_inertia",
             *(f"{name}_{axis}" for name in ("momentum", "centre", "angular", "omega") for axis in _AXES),
@@ -467,8 +470,13 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
             "internal = kinetic_energy - rigid_kinetic_energy",
             into=("xend", "vend") if self._stages is not None else ("x0", "v0"),
         )
+        self.addComputeGlobal("sum_rattle_residual", f"sum_rattle_residual + {RATTLE_RESIDUAL}")
         self.addComputeGlobal(
             "sum_rattle_residual_squared", f"sum_rattle_residual_squared + {RATTLE_RESIDUAL}^2"
+        )
+        self.addComputeGlobal("sum_scale_change", f"sum_scale_change + ({VELOCITY_SCALE} - 1)")
+        self.addComputeGlobal(
+            "sum_scale_change_squared", f"sum_scale_change_squared + ({VELOCITY_SCALE} - 1)^2"
         )
         self.addComputeGlobal("max_abs_scale_change", f"max(max_abs_scale_change, abs({VELOCITY_SCALE} - 1))")
         self.endBlock()
@@ -706,23 +714,36 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
 
         Returns
         -------
-        A dict with ``steps``, ``reference_resets``, ``force_evaluations_per_step``,
-        ``rms_rattle_residual`` (RMS of H − E_ref after each RATTLE step, before its
-        scaling: the energy error the rescaling removed, kJ/mol; with ``rescale_interval``
-        N > 1 over the rescaling steps: the error of N steps) and
-        ``max_abs_scale_change`` (max |s − 1|); NaN before the first step.
+        A dict with ``steps``, ``rescalings`` (steps that were scaled), ``reference_resets``,
+        ``force_evaluations_per_step``, ``rms_rattle_residual`` (RMS of H − E_ref after each
+        RATTLE step, before its scaling: the energy error the rescaling removed, kJ/mol; with
+        ``rescale_interval`` N > 1 over the rescaling steps: the error of N steps),
+        ``max_abs_scale_change`` (max |s − 1|), ``mean_scale_change`` and
+        ``rms_scale_change`` (mean and RMS of s − 1 over the rescalings), ``removed_energy``
+        (the sum of those H − E_ref, kJ/mol: what the scalings took out) and
+        ``added_energy_per_ns`` (−``removed_energy`` per ns of simulated time, kJ/mol/ns);
+        NaN before the first step.
         """
         steps = self.steps_taken
         rescaled = self.rescalings
-        squares = self.getGlobalVariableByName("sum_rattle_residual_squared")
+        nan = float("nan")
+
+        def mean(name: str) -> float:
+            return self.getGlobalVariableByName(name) / rescaled if rescaled else nan
+
+        removed = self.getGlobalVariableByName("sum_rattle_residual") if rescaled else nan
+        simulated_ns = steps * self.getStepSize().value_in_unit(unit.nanoseconds)
         return {
             "steps": steps,
+            "rescalings": rescaled,
             "reference_resets": int(self.getGlobalVariableByName("reference_resets")),
             "force_evaluations_per_step": self.force_evaluations_per_step,
-            "rms_rattle_residual": (squares / rescaled) ** 0.5 if rescaled else float("nan"),
-            "max_abs_scale_change": self.getGlobalVariableByName("max_abs_scale_change")
-            if rescaled
-            else float("nan"),
+            "rms_rattle_residual": mean("sum_rattle_residual_squared") ** 0.5,
+            "max_abs_scale_change": self.getGlobalVariableByName("max_abs_scale_change") if rescaled else nan,
+            "mean_scale_change": mean("sum_scale_change"),
+            "rms_scale_change": mean("sum_scale_change_squared") ** 0.5,
+            "removed_energy": removed,
+            "added_energy_per_ns": -removed / simulated_ns if rescaled else nan,
         }
 
 

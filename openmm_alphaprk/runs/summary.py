@@ -87,6 +87,11 @@ class RunSummary:
     controller : dict
         The energy mode's :class:`~openmm_alphaprk.runs.ControllerSummary` as a dict;
         empty for the other integrators.
+    rescaling : dict
+        RATTLE + rescaling only (empty for the others): what the velocity scaling did over
+        every step of the run, :meth:`~openmm_alphaprk.RattleRescaleIntegrator.rescale_totals`
+        (``rescalings``, ``mean_scale_change`` and ``rms_scale_change`` of s − 1,
+        ``removed_energy`` kJ/mol, ``added_energy_per_ns`` kJ/mol/ns, ...).
     momentum_change : dict
         Without a periodic box, the largest change of a component of linear and
         angular momentum over the run; empty with one.
@@ -136,6 +141,7 @@ class RunSummary:
     force_evaluations_per_step: float
     velocity_verlet: bool
     controller: dict = field(default_factory=dict)
+    rescaling: dict = field(default_factory=dict)
     momentum_change: dict = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
 
@@ -191,6 +197,7 @@ def summarize(
         force_evaluations_per_step=float(evaluations),
         velocity_verlet=spec.velocity_verlet,
         controller=_controller(output, integrator),
+        rescaling=_rescaling(integrator),
         momentum_change=momentum_change,
         notes=_notes(spec, integrator),
     )
@@ -221,6 +228,13 @@ def _controller(output: Path, integrator: mm.Integrator) -> dict:
         return {}
     totals = integrator.controller_totals()
     return summarize_controller(rows, totals=totals).as_dict()
+
+
+def _rescaling(integrator: mm.Integrator) -> dict:
+    """Return what a rescaling integrator's scalings did (empty for the others, and before a step)."""
+    if isinstance(integrator, RattleRescaleIntegrator) and integrator.steps_taken:
+        return integrator.rescale_totals()
+    return {}
 
 
 def read_summary(path: Path) -> RunSummary | None:
