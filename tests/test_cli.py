@@ -196,6 +196,8 @@ def test_run_then_analyze(tmp_path, cache, quick_definition):
         "2",
         "--trajectory-interval",
         "5",
+        "--velocity-interval",
+        "4",
         "--quiet",
         "--json",
         cwd=tmp_path,
@@ -203,6 +205,11 @@ def test_run_then_analyze(tmp_path, cache, quick_definition):
     )
     summary = json.loads(result.stdout)
     assert summary["steps"] == 20 and summary["integrator"] == "alpha=1/6"
+    import MDAnalysis as mda  # --velocity-interval: positions and velocities every 4 steps, in a TRR
+
+    frames = mda.Universe(str(tmp_path / "out" / "topology.pdb"), str(tmp_path / "out" / "trajectory.trr"))
+    assert [ts.data["step"] for ts in frames.trajectory] == [4, 8, 12, 16, 20]
+    assert frames.trajectory.ts.has_velocities and abs(frames.atoms.velocities).max() > 1  # Å/ps
     assert json.loads((tmp_path / "out" / "summary.json").read_text(encoding="utf-8")) == summary
     analysis = alphaprk("analyze", "out", "--rdf-max", "0.8nm", cwd=tmp_path, env_cache=cache)
     assert "O-O RDF: first peak" in analysis.stdout and "drift" in analysis.stdout
@@ -241,6 +248,8 @@ def test_run_then_analyze(tmp_path, cache, quick_definition):
         "2",
         "--trajectory-interval",
         "5",
+        "--velocity-interval",
+        "4",
         "--quiet",
         "--json",
         cwd=tmp_path,

@@ -109,11 +109,11 @@ def test_interrupted_run_resumes_to_the_uninterrupted_result(
     assert rundir.read_energies(parts / rundir.ENERGIES_FILE)[-1, 0] <= stop.step + 1
     summary = run_nve(prepared, integrator, parts, steps=30, **options)
     assert summary.steps == 30 and summary.steps_this_call == 30 - (resumes_from or 0)
-    if "velocity_interval" in extra:  # velocities.dcd cut back to the checkpoint, then continued
-        v_whole = rundir.open_universe(whole, rundir.VELOCITIES_FILE)
-        v_parts = rundir.open_universe(parts, rundir.VELOCITIES_FILE)
-        assert len(v_parts.trajectory) == len(v_whole.trajectory) == 10
-        np.testing.assert_array_equal(v_parts.trajectory.timeseries(), v_whole.trajectory.timeseries())
+    if "velocity_interval" in extra:  # trajectory.trr cut back to the checkpoint, then continued
+        assert (parts / rundir.TRR_FILE).read_bytes() == (whole / rundir.TRR_FILE).read_bytes()
+        v_parts = rundir.open_universe(parts, rundir.TRR_FILE)
+        assert len(v_parts.trajectory) == 10
+        assert [ts.data["step"] for ts in v_parts.trajectory] == list(range(3, 31, 3))
     for name in (rundir.ENERGIES_FILE, rundir.CONTROLLER_FILE):
         if (whole / name).exists():
             assert (parts / name).read_text(encoding="utf-8") == (whole / name).read_text(encoding="utf-8")
@@ -276,7 +276,7 @@ def test_reading_a_run_directory_raises_no_deprecation_warning(cluster, tmp_path
     with warnings.catch_warnings():
         warnings.simplefilter("error", DeprecationWarning)
         assert len(rundir.open_universe(tmp_path).trajectory) == 4
-        assert len(rundir.open_universe(tmp_path, rundir.VELOCITIES_FILE).trajectory) == 4
+        assert len(rundir.open_universe(tmp_path, rundir.TRR_FILE).trajectory) == 4
         result = analyze_run(tmp_path, plot=False)
     constraints = result["constraints"]
     assert "float32" in constraints["note"] and "full-precision final state" in constraints["note"]
@@ -317,7 +317,7 @@ def test_isolated_cluster_keeps_momenta(cluster, tmp_path):
 
 
 def test_velocities_file_and_seeded_start(cluster, tmp_path):
-    """velocities.dcd holds the State's velocities in Å/ps; a seed draws new, constrained velocities."""
+    """trajectory.trr holds the State's positions and velocities; a seed draws new, constrained velocities."""
     import openmm as mm
 
     from openmm_alphaprk.observables import system_constraint_errors as constraint_errors
@@ -347,12 +347,16 @@ def test_velocities_file_and_seeded_start(cluster, tmp_path):
     # momenta are compared with the seeded start, not with the prepared state's velocities
     assert first.momentum_change["linear_amu_nm_per_ps"] < 1e-9
     assert not (tmp_path / "d" / rundir.START_STATE_FILE).exists()
-    u = rundir.open_universe(tmp_path / "a", rundir.VELOCITIES_FILE)
+    u = rundir.open_universe(tmp_path / "a", rundir.TRR_FILE)
     assert len(u.trajectory) == 3 and u.trajectory.dt == pytest.approx(0.008, rel=1e-6)
-    u.trajectory[-1]  # the last frame (step 12) is the last checkpoint's velocities, ×10 (Å/ps)
+    u.trajectory[-1]  # the last frame (step 12) is the last checkpoint's state, in Å and Å/ps
+    assert u.trajectory.ts.data["step"] == 12 and u.trajectory.time == pytest.approx(0.024)
     np.testing.assert_allclose(
-        u.atoms.positions / 10.0, _final_velocities(cluster, tmp_path / "a"), atol=1e-5
+        u.atoms.velocities / 10.0, _final_velocities(cluster, tmp_path / "a"), atol=1e-5
     )
+    positions = rundir.open_universe(tmp_path / "a")  # the DCD's last frame: the same positions
+    positions.trajectory[-1]
+    np.testing.assert_allclose(u.atoms.positions, positions.atoms.positions, atol=1e-3)
 
 
 def _final_velocities(prepared, directory):
@@ -515,3 +519,20 @@ def test_the_equal_cost_line_says_a_loss_as_a_loss():
     )
     better = gain | {"rattle_rms_residual": 0.3752, "gain": 0.3752 / 0.0938}
     assert gain_line(better).endswith("0.375: 4x lower")
+
+
+def test_a_trr_frame_cut_off_by_an_interruption_is_removed_on_resume(cluster, tmp_path):
+    """truncate_trr keeps whole frames only: a partial last frame and frames past the checkpoint go."""
+    run_nve(cluster, "rattle", tmp_path, steps=12, velocity_interval=2, **REFERENCE_RUN)
+    path = tmp_path / rundir.TRR_FILE
+    whole = path.read_bytes()
+    frame = len(whole) // 6
+    assert len(whole) == 6 * frame
+    path.write_bytes(whole + whole[: frame // 2])  # half a frame, as a kill during a write leaves it
+    assert rundir.truncate_trr(path, 100) == 6 and path.read_bytes() == whole
+    assert rundir.truncate_trr(path, 4) == 4 and path.read_bytes() == whole[: 4 * frame]
+    steps = [ts.data["step"] for ts in rundir.open_universe(tmp_path, rundir.TRR_FILE).trajectory]
+    assert steps == [2, 4, 6, 8]
+    path.write_bytes(b"not a trr file")
+    with pytest.raises(rundir.RunDirectoryError, match="move it away"):
+        rundir.truncate_trr(path, 1)

@@ -1,9 +1,9 @@
 """Velocity autocorrelation function and vibrational spectrum (an MDAnalysis ``AnalysisBase``).
 
-The run driver stores velocities in a DCD file whose "positions" are the atom velocities:
-OpenMM's ``app.DCDFile`` is handed the nm/ps velocities typed as nm, so MDAnalysis reads them
-back as Å/ps (``source="positions"``). Trajectories with real velocities (TRR, NetCDF) are
-read with ``source="velocities"``; MDAnalysis gives those in Å/ps too.
+The run driver stores velocities in ``trajectory.trr`` beside the positions; trajectories
+with velocities (TRR, NetCDF) are read with ``source="velocities"``, in Å/ps as MDAnalysis
+gives them. ``source="positions"`` reads files whose "positions" are velocities (a DCD
+written by OpenMM's ``app.DCDFile`` handed nm/ps velocities typed as nm: Å/ps).
 
 The frame spacing MDAnalysis reports for a DCD written by ``app.DCDFile(file, topology, dt,
 firstStep, interval)`` is ``dt * interval`` in ps (OpenMM stores the step in AKMA time units
@@ -96,8 +96,9 @@ class VelocityAutocorrelation(AnalysisBase):
     select : str, default "all"
         Atoms to follow, e.g. ``"name H*"`` for water hydrogens (libration band).
     source : {"positions", "velocities"}, default "positions"
-        ``"positions"``: the frame's positions are velocities in Å/ps (the velocity DCD
-        files of the run driver); ``"velocities"``: the trajectory's own velocities (Å/ps).
+        ``"positions"``: the frame's positions are velocities in Å/ps (velocities stored as
+        DCD coordinates); ``"velocities"``: the trajectory's own velocities (Å/ps), e.g.
+        the run driver's ``trajectory.trr``.
     dt : float, optional
         Time between consecutive trajectory frames in ps; default the trajectory's
         ``dt``. With ``run(step=k)`` the analysed frames are ``k * dt`` apart.
@@ -147,8 +148,8 @@ class VelocityAutocorrelation(AnalysisBase):
     >>> with tempfile.TemporaryDirectory() as folder:
     ...     run = os.path.join(folder, "run")
     ...     _ = run_nve("tip3p-2nm", "rattle", run, steps=20, velocity_interval=1, progress=False)
-    ...     velocities = open_universe(run, "velocities.dcd")  # Å/ps stored as positions
-    ...     vacf = VelocityAutocorrelation(velocities, select="name H*").run()
+    ...     frames = open_universe(run, "trajectory.trr")  # positions and velocities
+    ...     vacf = VelocityAutocorrelation(frames, select="name H*", source="velocities").run()
     >>> round(vacf.results.dt, 6), round(vacf.results.max_lag, 6)  # ps: half the 20 frames' span
     (0.002, 0.018)
     >>> float(vacf.results.normalized_vacf[0]), vacf.results.n_origins[:3].tolist()
@@ -173,7 +174,7 @@ class VelocityAutocorrelation(AnalysisBase):
         if source not in _SOURCES:
             raise InputError(
                 f"unknown source {source!r}: use 'positions' (velocities stored as positions, "
-                "e.g. velocities.dcd) or 'velocities' (a trajectory with velocities, e.g. TRR)."
+                "as DCD coordinates) or 'velocities' (a trajectory with velocities, e.g. TRR)."
             )
         if dt is not None and not dt > 0:
             raise InputError(f"dt must be a positive time between frames in ps, got {dt}.")
@@ -234,7 +235,7 @@ class VelocityAutocorrelation(AnalysisBase):
         if self._source == "velocities" and not self._trajectory.ts.has_velocities:
             raise InputError(
                 "source='velocities' but the trajectory has no velocities; for velocities stored as "
-                "positions (velocities.dcd) use source='positions'."
+                "positions use source='positions'; a run writes velocities with --velocity-interval N."
             )
         dt = self._trajectory_dt()
         # start/stop/step slicing: check max_lag before reading the frames.

@@ -50,6 +50,7 @@ def _run_options(args, default_steps: int = DEFAULTS.steps) -> RunOptions:
         constraint_tolerance=args.constraint_tolerance,
         energy_interval=args.energy_interval,
         trajectory_interval=args.trajectory_interval,
+        velocity_interval=args.velocity_interval,
         checkpoint_interval=args.checkpoint_interval,
         controller_interval=args.controller_interval,
         checkpoint_seconds=args.checkpoint_seconds,

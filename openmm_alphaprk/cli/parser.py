@@ -308,6 +308,13 @@ def _add_interval_options(parser: argparse.ArgumentParser) -> None:
         help=f"steps between DCD frames (default {DEFAULTS.trajectory_interval})",
     )
     parser.add_argument(
+        "--velocity-interval",
+        type=positive,
+        default=DEFAULTS.velocity_interval,
+        help="steps between frames of trajectory.trr: positions, velocities and box, as GROMACS writes "
+        "them (default: none); what `alphaprk validate` and velocity autocorrelations read",
+    )
+    parser.add_argument(
         "--controller-interval",
         type=positive,
         default=DEFAULTS.controller_interval,

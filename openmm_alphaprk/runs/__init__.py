@@ -3,7 +3,7 @@
 - :mod:`.options`: :class:`RunOptions`, every option of a run with its default and checks.
 - :mod:`.rundir`: the files of a run directory, its parameters, resume checks.
 - :mod:`.reporters`: :class:`AlphaControllerReporter` (α* controller CSV) and
-  :class:`VelocityDCDReporter` (velocities as DCD), controller summaries.
+  :class:`TRRReporter` (positions with velocities, TRR), controller summaries.
 - :mod:`.checkpoints`: checkpoints by steps, by wall time and on Ctrl-C, and
   :class:`RunInterrupted`, which says from which step a run resumes.
 - :mod:`.driver`: :func:`run_nve`, prepare → simulate → write.
@@ -16,7 +16,7 @@ from .options import RunOptions
 from .reporters import (
     AlphaControllerReporter,
     ControllerSummary,
-    VelocityDCDReporter,
+    TRRReporter,
     read_controller_csv,
     summarize_controller,
 )
@@ -31,7 +31,7 @@ __all__ = [
     "RunInterrupted",
     "RunOptions",
     "RunSummary",
-    "VelocityDCDReporter",
+    "TRRReporter",
     "read_controller_csv",
     "read_energies",
     "run_nve",

@@ -24,7 +24,7 @@ from pathlib import Path
 import openmm as mm
 import openmm.app as app
 
-from .reporters import AlphaControllerReporter, VelocityDCDReporter
+from .reporters import AlphaControllerReporter, TRRReporter
 
 
 class RunInterrupted(KeyboardInterrupt):
@@ -167,8 +167,8 @@ class TrackedControllerReporter(Tracked, AlphaControllerReporter):
     """:class:`AlphaControllerReporter` that remembers the step of its last row."""
 
 
-class TrackedVelocityDCDReporter(Tracked, VelocityDCDReporter):
-    """:class:`VelocityDCDReporter` that remembers the step of its last frame."""
+class TrackedTRRReporter(Tracked, TRRReporter):
+    """:class:`TRRReporter` that remembers the step of its last frame."""
 
 
 @contextlib.contextmanager

@@ -40,7 +40,7 @@ from .checkpoints import (
     TrackedControllerReporter,
     TrackedDCDReporter,
     TrackedStateDataReporter,
-    TrackedVelocityDCDReporter,
+    TrackedTRRReporter,
     deferred_interrupt,
     interrupted,
 )
@@ -377,12 +377,10 @@ def _reporters(output: Path, spec: IntegratorSpec, intervals: dict, append: bool
         )
     )
     if "velocity_interval" in intervals:
-        velocities = output / rundir.VELOCITIES_FILE
+        frames = output / rundir.TRR_FILE
         reporters.append(
-            TrackedVelocityDCDReporter(
-                str(velocities),
-                intervals["velocity_interval"],
-                append=append and rundir.has_dcd_header(velocities),
+            TrackedTRRReporter(
+                str(frames), intervals["velocity_interval"], append=append and frames.is_file()
             )
         )
     return reporters

@@ -69,9 +69,8 @@ class RunOptions:
         interval; default 60 s): an interruption loses at most about this much work.
         Not part of the run's identity.
     velocity_interval : int, optional
-        Steps between frames of ``velocities.dcd`` (velocities in Å/ps stored as DCD
-        coordinates, see :class:`~openmm_alphaprk.runs.VelocityDCDReporter`); None
-        (default) writes none.
+        Steps between frames of ``trajectory.trr`` (positions, velocities and box, see
+        :class:`~openmm_alphaprk.runs.TRRReporter`); None (default) writes none.
     velocity_seed : int, optional
         None (default): start from the prepared state's velocities. An integer: draw new
         Maxwell–Boltzmann velocities at the definition's temperature with this seed

@@ -1,4 +1,4 @@
-"""OpenMM reporters of a run: the α* controller's diagnostics (CSV) and velocities (DCD).
+"""OpenMM reporters of a run: the α* controller's diagnostics (CSV), positions with velocities (TRR).
 
 Both follow OpenMM's reporter protocol (``describeNextReport``/``report``) and build
 their header and each report's values in separate methods, as OpenMM's own reporters do.
@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 import openmm.app as app
 import openmm.unit as unit
+from MDAnalysis.lib.formats.libmdaxdr import TRRFile
 
 from .._units import InputError, InputTypeError
 from ..integrators import AlphaRattleEnergyIntegrator, restore_integrator
@@ -420,105 +421,116 @@ def summarize_controller(
     )
 
 
-class VelocityDCDReporter:
-    """Write atom velocities to a DCD file as the run goes (for velocity autocorrelations).
+class TRRReporter:
+    """Write positions, velocities and the box to a GROMACS TRR file as the run goes.
 
-    OpenMM's ``DCDReporter`` writes positions only. This reporter writes each frame's
-    velocities through OpenMM's own ``app.DCDFile`` in place of positions; the file then
-    holds **velocities in Å/ps** where a DCD holds coordinates in Å, and MDAnalysis reads
-    them back as ``Universe(topology, file).atoms.positions`` (see
-    :class:`~openmm_alphaprk.analysis.VelocityAutocorrelation`, ``source="positions"``).
-    Frames are written at steps that are multiples of ``reportInterval``, as by
-    ``DCDReporter``, and the file is flushed after each.
+    OpenMM has no reporter of velocities. This one follows OpenMM's reporter protocol
+    (``describeNextReport``/``report``) and writes each frame with MDAnalysis' own TRR
+    writer (``MDAnalysis.lib.formats.libmdaxdr.TRRFile``): positions in nm, velocities
+    in nm/ps, the box, the step and the time (ps), in single precision, as GROMACS writes
+    them. MDAnalysis, GROMACS, MDTraj and ``physical_validation`` read it
+    (``MDAnalysis.Universe(topology, file)``: ``atoms.positions`` in Å,
+    ``atoms.velocities`` in Å/ps). Positions are not wrapped into the box (as the run
+    driver's DCD), so displacements can be read from them. Frames are written at steps
+    that are multiples of ``reportInterval``, as by ``DCDReporter``. A TRR file is a
+    sequence of self-contained frames: each is written whole to a scratch file beside
+    the file (the writer opens only new files) and appended to it in one write, then
+    flushed, so an interrupted run leaves every complete frame readable and
+    :func:`~openmm_alphaprk.runs.rundir.truncate_trr` cuts a partial one off.
 
     Parameters
     ----------
     file : str or os.PathLike
-        Path of the DCD file.
+        Path of the TRR file.
     reportInterval : int
         Steps between frames.
     append : bool, default False
-        Append to an existing file written by this reporter (for a resumed run).
+        Append to an existing file (for a resumed run) instead of starting a new one.
 
     Raises
     ------
     ValueError
-        From ``report``, if a velocity is not finite (fail fast on NaN).
+        From ``report``, if a position or velocity is not finite (fail fast on NaN).
 
     Examples
     --------
-    Velocities of the shipped water cluster every 2 steps, read back with MDAnalysis
-    (``open_universe`` reads a run directory's ``topology.pdb`` with one of its DCD
-    files):
+    Positions and velocities of the shipped water cluster every 2 steps, read back with
+    MDAnalysis:
 
-    >>> import os, tempfile, openmm, openmm.app as app, openmm.unit as unit
+    >>> import os, tempfile, MDAnalysis, openmm, openmm.app as app, openmm.unit as unit
     >>> from openmm_alphaprk import RattleIntegrator
-    >>> from openmm_alphaprk.runs import VelocityDCDReporter
-    >>> from openmm_alphaprk.runs.rundir import open_universe
+    >>> from openmm_alphaprk.runs import TRRReporter
     >>> from openmm_alphaprk.systems import prepare_system
     >>> water = prepare_system("water-cluster")
     >>> platform = openmm.Platform.getPlatformByName("Reference")
     >>> simulation = app.Simulation(water.topology, water.system, RattleIntegrator(0.002), platform)
     >>> simulation.context.setState(water.state)
     >>> with tempfile.TemporaryDirectory() as folder:
-    ...     simulation.reporters.append(VelocityDCDReporter(os.path.join(folder, "velocities.dcd"), 2))
+    ...     path = os.path.join(folder, "trajectory.trr")
+    ...     simulation.reporters.append(TRRReporter(path, 2))
     ...     simulation.step(4)
     ...     with open(os.path.join(folder, "topology.pdb"), "w") as pdb:
     ...         app.PDBFile.writeFile(water.topology, water.state.getPositions(), pdb)
-    ...     universe = open_universe(folder, "velocities.dcd")
+    ...     universe = MDAnalysis.Universe(os.path.join(folder, "topology.pdb"), path)
     ...     frames = universe.trajectory.n_frames
-    ...     last = universe.trajectory[-1].positions / 10  # Å/ps → nm/ps
+    ...     last = universe.trajectory[-1].velocities / 10  # Å/ps → nm/ps
+    ...     step, time = universe.trajectory.ts.data["step"], universe.trajectory.time
     >>> state = simulation.context.getState(getVelocities=True)
     >>> velocities = state.getVelocities(asNumpy=True).value_in_unit(unit.nanometers / unit.picoseconds)
-    >>> frames, bool(abs(last - velocities).max() < 1e-5)  # stored as float32
-    (2, True)
+    >>> frames, step, round(time, 6), bool(abs(last - velocities).max() < 1e-5)  # stored as float32
+    (2, 4, 0.008, True)
     """
 
     def __init__(self, file: str | os.PathLike, reportInterval: int, append: bool = False):
         if isinstance(reportInterval, bool) or int(reportInterval) != reportInterval or reportInterval < 1:
             raise InputError(f"reportInterval must be a positive integer, got {reportInterval!r}.")
         self._path = os.fspath(file)
+        self._scratch = self._path + ".frame"
         self._interval = int(reportInterval)
         self._append = append
         self._handle = None
-        self._dcd = None
 
     def describeNextReport(self, simulation: app.Simulation) -> dict:
         steps = self._interval - simulation.currentStep % self._interval
-        return {"steps": steps, "periodic": None, "include": ["velocities"]}
+        return {"steps": steps, "periodic": False, "include": ["positions", "velocities"]}
 
     def report(self, simulation: app.Simulation, state) -> None:
-        """Write one frame: the State's velocities."""
-        velocities = self._constructReportValues(simulation, state)
-        if self._dcd is None:
-            self._open(simulation)
-        # Velocities (nm/ps) typed as nm: DCDFile stores them ×10, i.e. in Å/ps.
-        self._dcd.writeModel(unit.Quantity(velocities, unit.nanometers))
+        """Write one frame: the State's positions, velocities and box."""
+        positions, velocities, box = self._constructReportValues(simulation, state)
+        if self._handle is None:
+            self._handle = open(self._path, "ab" if self._append else "wb")
+        with TRRFile(self._scratch, "w") as frame:
+            frame.write(
+                positions,
+                velocities,
+                None,
+                box,
+                simulation.currentStep,
+                state.getTime().value_in_unit(unit.picoseconds),
+                0.0,
+                len(positions),
+            )
+        with open(self._scratch, "rb") as frame:
+            self._handle.write(frame.read())
         self._handle.flush()
 
     @staticmethod
-    def _constructReportValues(simulation: app.Simulation, state) -> np.ndarray:
-        """Return the State's velocities in nm/ps, checked to be finite."""
+    def _constructReportValues(
+        simulation: app.Simulation, state
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Return positions (nm), velocities (nm/ps) and box vectors (nm, 3 × 3), checked to be finite."""
+        positions = state.getPositions(asNumpy=True).value_in_unit(unit.nanometers)
         velocities = state.getVelocities(asNumpy=True).value_in_unit(unit.nanometers / unit.picoseconds)
-        if not np.all(np.isfinite(velocities)):
+        if not (np.all(np.isfinite(positions)) and np.all(np.isfinite(velocities))):
             raise InputError(
-                f"non-finite velocity at step {simulation.currentStep}: the simulation has blown up; "
-                "use a smaller step size."
+                f"non-finite position or velocity at step {simulation.currentStep}: the simulation has "
+                "blown up; use a smaller step size."
             )
-        return velocities
-
-    def _open(self, simulation: app.Simulation) -> None:
-        """Open the file and write the DCD header (or take over the header of the file appended to)."""
-        self._handle = open(self._path, "r+b" if self._append else "wb")
-        self._dcd = app.DCDFile(
-            self._handle,
-            simulation.topology,
-            simulation.integrator.getStepSize(),
-            simulation.currentStep,
-            self._interval,
-            self._append,
-        )
+        box = state.getPeriodicBoxVectors(asNumpy=True).value_in_unit(unit.nanometers)
+        return positions, velocities, np.asarray(box, dtype=float)
 
     def __del__(self):
         if self._handle is not None:
             self._handle.close()
+        if os.path.exists(self._scratch):
+            os.remove(self._scratch)

@@ -7,7 +7,7 @@ A run directory holds::
     energies.csv     StateDataReporter rows: step, time, potential, kinetic, total energy, temperature
     controller.csv   energy mode only: AlphaControllerReporter rows every controller_interval steps
     trajectory.dcd   DCDReporter frames (unwrapped coordinates) every trajectory_interval steps
-    velocities.dcd   optional: velocities (Å/ps, stored as DCD coordinates) every velocity_interval steps
+    trajectory.trr   optional: positions, velocities and box (TRR, nm and nm/ps) every velocity_interval steps
     start_state.xml  with velocity_seed: the start State (XmlSerializer) with the new velocities
     checkpoint.chk   the last checkpoint (OpenMM binary, platform-specific)
     summary.json     written when the run is complete
@@ -41,7 +41,7 @@ PARAMETERS_FILE = "run.json"
 ENERGIES_FILE = "energies.csv"
 CONTROLLER_FILE = "controller.csv"
 TRAJECTORY_FILE = "trajectory.dcd"
-VELOCITIES_FILE = "velocities.dcd"
+TRR_FILE = "trajectory.trr"
 START_STATE_FILE = "start_state.xml"
 CHECKPOINT_FILE = "checkpoint.chk"
 #: The checkpoint before the last one, kept so that a damaged last one loses one interval.
@@ -57,7 +57,7 @@ OUTPUT_FILES = (
     ENERGIES_FILE,
     CONTROLLER_FILE,
     TRAJECTORY_FILE,
-    VELOCITIES_FILE,
+    TRR_FILE,
     START_STATE_FILE,
     SUMMARY_FILE,
 )
@@ -279,12 +279,12 @@ def remove_outputs(path: Path) -> None:
 
 
 def cut_back(path: Path, step: int, intervals: dict[str, int]) -> None:
-    """Cut the CSV and DCD files of a run back to ``step`` (its checkpoint's) before it resumes."""
+    """Cut the CSV, DCD and TRR files of a run back to ``step`` (its checkpoint's) before it resumes."""
     truncate_csv(path / ENERGIES_FILE, step)
     truncate_csv(path / CONTROLLER_FILE, step)
     truncate_dcd(path / TRAJECTORY_FILE, step // intervals["trajectory_interval"])
     if "velocity_interval" in intervals:
-        truncate_dcd(path / VELOCITIES_FILE, step // intervals["velocity_interval"])
+        truncate_trr(path / TRR_FILE, step // intervals["velocity_interval"])
 
 
 def truncate_csv(path: Path, last_step: int) -> None:
@@ -345,6 +345,32 @@ def truncate_dcd(path: Path, n_frames: int) -> int:
     return keep
 
 
+def truncate_trr(path: Path, n_frames: int) -> int:
+    """Cut a TRR file to its first ``n_frames`` complete frames; return the frames kept.
+
+    The frames of one run are all of one size (same atoms, same fields), so a frame cut
+    off by an interruption is the tail beyond the last whole multiple of it.
+    """
+    from MDAnalysis.lib.formats.libmdaxdr import TRRFile
+
+    if not path.is_file() or path.stat().st_size == 0:
+        return 0
+    size = path.stat().st_size
+    try:
+        with TRRFile(str(path), "r") as trr:
+            offsets = list(trr.offsets)
+    except (OSError, RuntimeError, ValueError) as error:
+        raise RunDirectoryError(
+            f"{path} is not a readable TRR file ({error}); move it away to resume."
+        ) from None
+    frame_size = offsets[1] - offsets[0] if len(offsets) > 1 else size
+    complete = size // frame_size
+    keep = max(0, min(n_frames, complete))
+    with open(path, "r+b") as handle:
+        handle.truncate(keep * frame_size)
+    return keep
+
+
 def has_dcd_header(path: Path) -> bool:
     """Tell whether ``path`` starts with a DCD header (OpenMM writes it with the first frame)."""
     if not path.is_file():
@@ -354,7 +380,10 @@ def has_dcd_header(path: Path) -> bool:
 
 
 def open_universe(path: str | os.PathLike, trajectory: str = TRAJECTORY_FILE):
-    """Return an MDAnalysis ``Universe`` of a run directory's ``topology.pdb`` and one of its DCD files.
+    """Return an MDAnalysis ``Universe`` of a run directory's ``topology.pdb`` and one of its trajectories.
+
+    ``trajectory``: :data:`TRAJECTORY_FILE` (DCD, positions) or :data:`TRR_FILE` (TRR,
+    positions and velocities).
 
     MDAnalysis 2.x warns (``DeprecationWarning``) on every ``DCDReader`` that from 3.0
     on its frames will be updated in place instead of copied (MDAnalysis GitHub #3889);

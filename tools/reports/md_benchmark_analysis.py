@@ -47,10 +47,10 @@ def analyse_run(directory: Path) -> dict:
     result["diffusion"] = float(msd.results.diffusion_coefficient)
     # error of D: the spread of D over 4 disjoint groups of molecules, / sqrt(4)
     result["diffusion_error"] = msd.results.diffusion_coefficient_standard_error
-    velocities_file = directory / "velocities.dcd"
+    velocities_file = directory / "trajectory.trr"
     if velocities_file.is_file():
         velocities = open_universe(directory, velocities_file.name)
-        vacf = VelocityAutocorrelation(velocities, select=WATER_H, max_lag=1.0).run()
+        vacf = VelocityAutocorrelation(velocities, select=WATER_H, max_lag=1.0, source="velocities").run()
         result["frequencies"] = vacf.results.frequencies.tolist()
         result["spectrum"] = vacf.results.spectrum.tolist()
         result["bands"] = {
