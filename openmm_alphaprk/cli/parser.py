@@ -25,6 +25,7 @@ BENCHMARKS = {
     "energy": "openmm_alphaprk.benchmarks.energy",
     "accuracy": "openmm_alphaprk.benchmarks.accuracy",
     "long": "openmm_alphaprk.benchmarks.long",
+    "physics": "openmm_alphaprk.benchmarks.physics",
 }
 
 

@@ -1,0 +1,175 @@
+"""Does holding the energy bend the physics? NVE segments and a long stress run, against RATTLE.
+
+Two kinds of runs, each a run directory of :func:`~openmm_alphaprk.runs.run_nve` with
+positions and velocities in ``trajectory.trr`` (so results are written as they go and
+the same command resumes an interrupted run):
+
+``segments``
+    ``--starts`` independent states, each drawn by ``--spacing`` ps of Langevin dynamics
+    (OpenMM's ``LangevinMiddleIntegrator`` at the system's temperature, 1/ps, 2 fs) from
+    the one before, the first from the system's equilibrated start
+    (``OUTPUT/starts/start_<i>.xml``); from each, ``--length`` ps of NVE of every row
+    (``OUTPUT/segments/<integrator>@<h>fs/start_<i>/``). Each figure of a setting (a
+    partition temperature, D, a g(r) peak) then has an error bar from the spread over
+    the independent segments, and rows from one start share E_ref.
+``stress``
+    ``--time`` ps of every rescaled row and RATTLE from the system's start at one step
+    (``OUTPUT/stress/<integrator>@<h>fs/``), for the partition temperatures against time
+    (a "flying ice cube" would open a growing gap).
+
+The analyses are ``alphaprk validate`` (:mod:`openmm_alphaprk.workflows.validate`) and
+:func:`~openmm_alphaprk.workflows.transport.transport_of_runs`, run over these folders by
+``report``, which writes ``OUTPUT/physics.json``. The command is ``alphaprk bench physics``
+(:func:`main`); ``--help`` lists its options.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Sequence
+from dataclasses import replace
+from pathlib import Path
+
+import openmm as mm
+import openmm.unit as unit
+
+from ..runs import RunOptions, run_nve
+from ..systems import PreparedSystem, load_definition, prepare_system
+
+#: Rows of the segments at each step (fs): the rescaled rows, RATTLE and the explicit splitting.
+SEGMENT_ROWS = ("rattle", "rattle+rescale", "rattle+rescale@10", "rattle4+rescale", "split-me")
+#: The unscaled small-step references: RATTLE at these steps (fs); the smallest is the reference.
+REFERENCE_STEPS_FS = (1.0, 0.5)
+#: Rows of the stress run.
+STRESS_ROWS = ("rattle", "rattle+rescale", "rattle+rescale@10", "rattle4+rescale")
+#: Simulated time between frames of trajectory.trr and trajectory.dcd (ps), the same at every step.
+FRAME_SPACING_PS = 0.02
+
+
+def setting_folder(integrator: str, timestep_fs: float) -> str:
+    """Folder name of a setting: ``rattle+rescale@10@2fs``."""
+    return f"{integrator}@{timestep_fs:g}fs"
+
+
+def nvt_starts(
+    prepared: PreparedSystem, count: int, spacing_ps: float, seed: int, folder: Path, platform: str
+) -> list[PreparedSystem]:
+    """Return ``count`` starts, each ``spacing_ps`` of Langevin dynamics after the one before.
+
+    Written to ``folder/start_<i>.xml`` as they are made and read from there when present.
+    Each start keeps the system's name (its segments are one setting) and gets its own
+    key (``<key>-nvt<i>``), so its run directories are told apart.
+    """
+    folder.mkdir(parents=True, exist_ok=True)
+    temperature = prepared.definition.equilibration.get("temperature_K", 300.0)
+    starts, state = [], prepared.state
+    integrator = context = None
+    for i in range(count):
+        path = folder / f"start_{i}.xml"
+        if path.is_file():
+            state = mm.XmlSerializer.deserialize(path.read_text(encoding="utf-8"))
+        else:
+            if context is None:
+                integrator = mm.LangevinMiddleIntegrator(
+                    temperature * unit.kelvin, 1 / unit.picosecond, 0.002
+                )
+                integrator.setRandomNumberSeed(seed)
+                context = mm.Context(prepared.system, integrator, mm.Platform.getPlatformByName(platform))
+            context.setState(state)
+            integrator.step(round(spacing_ps / 0.002))
+            state = context.getState(getPositions=True, getVelocities=True, enforcePeriodicBox=False)
+            path.write_text(mm.XmlSerializer.serialize(state), encoding="utf-8")
+        starts.append(replace(prepared, state=state, key=f"{prepared.key}-nvt{i}", source="built"))
+    return starts
+
+
+def _options(timestep_fs: float, time_ps: float, args: argparse.Namespace) -> RunOptions:
+    timestep_ps = timestep_fs / 1000
+    frames = max(1, round(FRAME_SPACING_PS / timestep_ps))
+    return RunOptions(
+        steps=round(time_ps / timestep_ps),
+        timestep=timestep_ps,
+        platform=args.platform,
+        energy_interval=frames,
+        trajectory_interval=frames * args.position_every,
+        velocity_interval=frames * args.velocity_every,
+        checkpoint_interval=frames * 500,
+        cpu_threads=args.threads,
+        progress=not args.no_progress,
+    )
+
+
+def run_segments(prepared: PreparedSystem, args: argparse.Namespace, output: Path) -> None:
+    """Every row at every ``--timesteps`` and the references, ``--length`` ps from each start."""
+    starts = nvt_starts(prepared, args.starts, args.spacing, args.seed, output / "starts", args.platform)
+    settings = [("rattle", h) for h in REFERENCE_STEPS_FS]
+    settings += [(name, h) for h in args.timesteps for name in args.rows]
+    for i, start in enumerate(starts):
+        for name, h in settings:
+            run = output / "segments" / setting_folder(name, h) / f"start_{i}"
+            run_nve(start, name, run, _options(h, args.length, args))
+
+
+def run_stress(prepared: PreparedSystem, args: argparse.Namespace, output: Path) -> None:
+    """Every stress row for ``--time`` ps (``--time-multi`` for the compositions) from the system's start."""
+    for name in args.rows:
+        time_ps = args.time_multi if "4" in name.split("+")[0] else args.time
+        h = args.timesteps[0]
+        run_nve(prepared, name, output / "stress" / setting_folder(name, h), _options(h, time_ps, args))
+
+
+def _prepared(args: argparse.Namespace) -> PreparedSystem:
+    definition = load_definition(args.system)
+    if args.hydrogen_mass is not None:
+        definition = definition.with_hydrogen_mass(args.hydrogen_mass)
+    return prepare_system(definition)
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="alphaprk bench physics",
+        description="NVE segments from independent NVT starts and a long stress run, with positions "
+        "and velocities saved, for `alphaprk validate` and the transport analyses.",
+    )
+    parser.add_argument("mode", choices=("segments", "stress"), help="which runs")
+    parser.add_argument("--system", default="tip3p-2nm", help="system name (default tip3p-2nm)")
+    parser.add_argument("--hydrogen-mass", type=float, default=None, help="hydrogen mass (amu) of a solute")
+    parser.add_argument("--rows", nargs="+", default=None, help="integrator names (default: the mode's)")
+    parser.add_argument("--timesteps", nargs="+", type=float, default=[2.0, 4.0], help="steps in fs")
+    parser.add_argument("--starts", type=int, default=4, help="segments: independent starts (default 4)")
+    parser.add_argument("--spacing", type=float, default=5.0, help="segments: ps of NVT between starts")
+    parser.add_argument("--seed", type=int, default=2026, help="segments: Langevin seed")
+    parser.add_argument("--length", type=float, default=10.0, help="segments: ps of NVE each (default 10)")
+    parser.add_argument("--time", type=float, default=500.0, help="stress: ps of the one-evaluation rows")
+    parser.add_argument("--time-multi", type=float, default=100.0, help="stress: ps of the compositions")
+    parser.add_argument("--velocity-every", type=int, default=1, help="TRR frame every this many frames")
+    parser.add_argument("--position-every", type=int, default=5, help="DCD frame every this many frames")
+    parser.add_argument("--platform", default="CPU", help="OpenMM platform (default CPU)")
+    parser.add_argument("--threads", type=int, default=None, help="CPU threads per run")
+    parser.add_argument("--output", default="alphaprk-physics", help="output folder")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bars")
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    if args.rows is None:
+        args.rows = list(SEGMENT_ROWS if args.mode == "segments" else STRESS_ROWS)
+    output = Path(args.output)
+    output.mkdir(parents=True, exist_ok=True)
+    prepared = _prepared(args)
+    (output / f"{args.mode}_arguments.json").write_text(
+        json.dumps(vars(args), indent=2) + "\n", encoding="utf-8"
+    )
+    if args.mode == "segments":
+        run_segments(prepared, args, output)
+    else:
+        run_stress(prepared, args, output)
+    print(f"{args.mode} of {prepared.name} in {output}", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
