@@ -126,3 +126,106 @@ class Diffusion(EinsteinMSD):
         if window.sum() < 2:
             return float("nan")
         return float(np.polyfit(lags[window], msd[window], 1)[0])
+
+
+#: Yeh and Hummer's constant ξ for a cubic periodic box (J. Phys. Chem. B 108 (2004) 15873,
+#: Eq. 13); it is the magnitude of the cubic lattice sum of the Oseen tensor (the Madelung-like
+#: constant 2.837297 of a simple cubic lattice).
+YEH_HUMMER_XI = 2.837297
+
+#: Shear viscosity of rigid TIP3P at 298 K and 1 bar, in mPa·s: 0.321 (González and Abascal,
+#: J. Chem. Phys. 132 (2010) 096101, Green–Kubo). Experiment: 0.896 mPa·s. Other water models
+#: differ (TIP4P: 0.494, same paper); pass their own value.
+TIP3P_SHEAR_VISCOSITY_MPA_S = 0.321
+
+_BOLTZMANN_J_PER_K = 1.380649e-23  # exact (SI 2019)
+#: 1 m²/s in 1e-5 cm²/s.
+_M2_PER_S_IN_1E5_CM2_PER_S = 1e9
+
+
+def yeh_hummer_correction(
+    temperature: object,
+    box_length: object,
+    viscosity: object = TIP3P_SHEAR_VISCOSITY_MPA_S,
+) -> float:
+    """Finite-size correction of a diffusion coefficient in a cubic periodic box, ξ k_B T / (6 π η L).
+
+    The self-diffusion coefficient of a periodic system of edge L is smaller than the
+    infinite system's by this amount (Yeh and Hummer, J. Phys. Chem. B 108 (2004) 15873:
+    D₀ = D_PBC + ξ k_B T / (6 π η L), ξ = :data:`YEH_HUMMER_XI` = 2.837297).
+
+    Parameters
+    ----------
+    temperature : float or openmm.unit.Quantity
+        T in K (a plain number) or a temperature Quantity.
+    box_length : float or openmm.unit.Quantity
+        Edge L of the cubic box in nm (a plain number) or a length Quantity.
+    viscosity : float or openmm.unit.Quantity, default TIP3P_SHEAR_VISCOSITY_MPA_S
+        Shear viscosity η of the model in mPa·s (a plain number) or a Quantity in pressure ×
+        time units (e.g. ``0.321 * unit.millipascal * unit.second``). The default is rigid
+        TIP3P's at 298 K (:data:`TIP3P_SHEAR_VISCOSITY_MPA_S`); give your model's.
+
+    Returns
+    -------
+    float
+        The correction in 1e-5 cm²/s (the unit of :class:`Diffusion`'s results).
+
+    Raises
+    ------
+    InputError
+        If a value is not a positive finite number; ``InputTypeError`` if a Quantity has
+        the wrong dimension.
+
+    Examples
+    --------
+    A 2 nm box of TIP3P water at 298 K: the correction is about 1e-5 cm²/s, a sixth of
+    the model's D (≈ 5.5e-5 cm²/s):
+
+    >>> import openmm.unit as unit
+    >>> from openmm_alphaprk.analysis import yeh_hummer_correction
+    >>> round(yeh_hummer_correction(298.0, 2.0), 4)  # K, nm; TIP3P's η = 0.321 mPa·s
+    0.9646
+    >>> round(yeh_hummer_correction(298.0 * unit.kelvin, 20.0 * unit.angstrom,
+    ...                             0.321 * unit.millipascal * unit.second), 4)
+    0.9646
+    """
+    from openmm import unit
+
+    from .._units import to_float
+
+    t = to_float(temperature, unit.kelvin, "temperature", positive=True)
+    length_m = to_float(box_length, unit.nanometer, "box_length", positive=True) * 1e-9
+    eta = to_float(viscosity, unit.millipascal * unit.second, "viscosity", positive=True) * 1e-3
+    correction = YEH_HUMMER_XI * _BOLTZMANN_J_PER_K * t / (6.0 * np.pi * eta * length_m)
+    return float(correction * _M2_PER_S_IN_1E5_CM2_PER_S)
+
+
+def corrected_diffusion(
+    diffusion_pbc: float,
+    temperature: object,
+    box_length: object,
+    viscosity: object = TIP3P_SHEAR_VISCOSITY_MPA_S,
+) -> float:
+    """Infinite-system diffusion coefficient D₀ = D_PBC + ξ k_B T / (6 π η L) (Yeh–Hummer).
+
+    Parameters
+    ----------
+    diffusion_pbc : float
+        D measured in the periodic box, in 1e-5 cm²/s (e.g.
+        ``Diffusion(...).results.diffusion_coefficient``).
+    temperature, box_length, viscosity
+        As for :func:`yeh_hummer_correction` (K, nm of the cubic box's edge, mPa·s; or
+        Quantities).
+
+    Returns
+    -------
+    float
+        D₀ in 1e-5 cm²/s. A NaN ``diffusion_pbc`` gives NaN.
+
+    Examples
+    --------
+    >>> from openmm_alphaprk.analysis import corrected_diffusion
+    >>> round(corrected_diffusion(4.5, 298.0, 2.0), 4)  # 1e-5 cm²/s
+    5.4646
+    """
+    return float(diffusion_pbc) + yeh_hummer_correction(temperature, box_length, viscosity)
