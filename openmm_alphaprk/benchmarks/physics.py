@@ -16,6 +16,10 @@ the same command resumes an interrupted run):
     ``--time`` ps of every rescaled row and RATTLE from the system's start at one step
     (``OUTPUT/stress/<integrator>@<h>fs/``), for the partition temperatures against time
     (a "flying ice cube" would open a growing gap).
+``order``
+    ``--length`` ps of every row at each of ``--timesteps`` from the system's start
+    (``OUTPUT/order/<integrator>@<h>fs/``), for the order of the fluctuations of H and
+    the power of h the scaling shrinks with.
 
 The analyses are ``alphaprk validate`` (:mod:`openmm_alphaprk.workflows.validate`) and
 :func:`~openmm_alphaprk.workflows.transport.transport_of_runs`, run over these folders by
@@ -44,6 +48,8 @@ SEGMENT_ROWS = ("rattle", "rattle+rescale", "rattle+rescale@10", "rattle4+rescal
 REFERENCE_STEPS_FS = (1.0, 0.5)
 #: Rows of the stress run.
 STRESS_ROWS = ("rattle", "rattle+rescale", "rattle+rescale@10", "rattle4+rescale")
+#: Rows of the order runs: second order (RATTLE, the splitting), fourth (Suzuki's composition), rescaled.
+ORDER_ROWS = ("rattle", "split-me", "alpha4=0", "rattle+rescale", "rattle4+rescale")
 #: Simulated time between frames of trajectory.trr and trajectory.dcd (ps), the same at every step.
 FRAME_SPACING_PS = 0.02
 
@@ -92,7 +98,7 @@ def _options(timestep_fs: float, time_ps: float, args: argparse.Namespace) -> Ru
         steps=round(time_ps / timestep_ps),
         timestep=timestep_ps,
         platform=args.platform,
-        energy_interval=frames,
+        energy_interval=frames * args.energy_every,
         trajectory_interval=frames * args.position_every,
         velocity_interval=frames * args.velocity_every,
         checkpoint_interval=frames * 500,
@@ -120,6 +126,15 @@ def run_stress(prepared: PreparedSystem, args: argparse.Namespace, output: Path)
         run_nve(prepared, name, output / "stress" / setting_folder(name, h), _options(h, time_ps, args))
 
 
+def run_order(prepared: PreparedSystem, args: argparse.Namespace, output: Path) -> None:
+    """Every row at every ``--timesteps`` for ``--length`` ps from the system's start."""
+    for name in args.rows:
+        for h in args.timesteps:
+            run_nve(
+                prepared, name, output / "order" / setting_folder(name, h), _options(h, args.length, args)
+            )
+
+
 def _prepared(args: argparse.Namespace) -> PreparedSystem:
     definition = load_definition(args.system)
     if args.hydrogen_mass is not None:
@@ -133,7 +148,7 @@ def _parser() -> argparse.ArgumentParser:
         description="NVE segments from independent NVT starts and a long stress run, with positions "
         "and velocities saved, for `alphaprk validate` and the transport analyses.",
     )
-    parser.add_argument("mode", choices=("segments", "stress"), help="which runs")
+    parser.add_argument("mode", choices=("segments", "stress", "order"), help="which runs")
     parser.add_argument("--system", default="tip3p-2nm", help="system name (default tip3p-2nm)")
     parser.add_argument("--hydrogen-mass", type=float, default=None, help="hydrogen mass (amu) of a solute")
     parser.add_argument("--rows", nargs="+", default=None, help="integrator names (default: the mode's)")
@@ -144,6 +159,7 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--length", type=float, default=10.0, help="segments: ps of NVE each (default 10)")
     parser.add_argument("--time", type=float, default=500.0, help="stress: ps of the one-evaluation rows")
     parser.add_argument("--time-multi", type=float, default=100.0, help="stress: ps of the compositions")
+    parser.add_argument("--energy-every", type=int, default=1, help="energies.csv row every this many frames")
     parser.add_argument("--velocity-every", type=int, default=1, help="TRR frame every this many frames")
     parser.add_argument("--position-every", type=int, default=5, help="DCD frame every this many frames")
     parser.add_argument("--platform", default="CPU", help="OpenMM platform (default CPU)")
@@ -156,17 +172,14 @@ def _parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     if args.rows is None:
-        args.rows = list(SEGMENT_ROWS if args.mode == "segments" else STRESS_ROWS)
+        args.rows = list({"segments": SEGMENT_ROWS, "stress": STRESS_ROWS, "order": ORDER_ROWS}[args.mode])
     output = Path(args.output)
     output.mkdir(parents=True, exist_ok=True)
     prepared = _prepared(args)
     (output / f"{args.mode}_arguments.json").write_text(
         json.dumps(vars(args), indent=2) + "\n", encoding="utf-8"
     )
-    if args.mode == "segments":
-        run_segments(prepared, args, output)
-    else:
-        run_stress(prepared, args, output)
+    {"segments": run_segments, "stress": run_stress, "order": run_order}[args.mode](prepared, args, output)
     print(f"{args.mode} of {prepared.name} in {output}", file=sys.stderr)
     return 0
 

@@ -15,7 +15,6 @@ from dataclasses import dataclass
 import numpy as np
 import openmm.app as app
 import openmm.unit as unit
-from MDAnalysis.lib.formats.libmdaxdr import TRRFile
 
 from .._units import InputError, InputTypeError
 from ..integrators import AlphaRattleEnergyIntegrator, restore_integrator
@@ -496,6 +495,10 @@ class TRRReporter:
 
     def report(self, simulation: app.Simulation, state) -> None:
         """Write one frame: the State's positions, velocities and box."""
+        from MDAnalysis.lib.formats.libmdaxdr import (
+            TRRFile,
+        )  # not at import: the CLI starts without MDAnalysis
+
         positions, velocities, box = self._constructReportValues(simulation, state)
         if self._handle is None:
             self._handle = open(self._path, "ab" if self._append else "wb")
