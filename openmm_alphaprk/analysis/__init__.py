@@ -9,6 +9,13 @@ from .diffusion import (
     yeh_hummer_correction,
 )
 from .energy import EnergyDrift, energy_drift
+from .equipartition import (
+    Equipartition,
+    combine_segments,
+    compare_settings,
+    molecules_of,
+    partition_temperature,
+)
 from .rotation import WATER_MOLECULES, DipoleReorientation
 from .structure import WATER_OXYGENS, first_peak, oxygen_rdf
 from .vacf import VelocityAutocorrelation, band_summary, spectrum_difference
@@ -22,12 +29,17 @@ __all__ = [
     "Diffusion",
     "DipoleReorientation",
     "EnergyDrift",
+    "Equipartition",
     "VelocityAutocorrelation",
     "band_summary",
+    "combine_segments",
+    "compare_settings",
     "corrected_diffusion",
     "energy_drift",
     "first_peak",
+    "molecules_of",
     "oxygen_rdf",
+    "partition_temperature",
     "spectrum_difference",
     "system_constraints",
     "yeh_hummer_correction",
