@@ -260,6 +260,17 @@ def _print_analysis(result: dict) -> None:
         print(f"note: {note}")
 
 
+def cmd_validate(args) -> int:
+    from ..workflows.validate import validate
+
+    result = validate(
+        args.runs, reference=args.reference, seed=args.seed, workers=args.workers, progress=not args.quiet
+    )
+    print(result.text())
+    print(f"written: {result.write(args.output)}")
+    return 0
+
+
 def cmd_sweep(args) -> int:
     from ..workflows.sweep import cell_status, load_config, run_sweep
 
@@ -300,6 +311,7 @@ COMMANDS = {
     "run": cmd_run,
     "compare": cmd_compare,
     "analyze": cmd_analyze,
+    "validate": cmd_validate,
     "sweep": cmd_sweep,
     "bench": cmd_bench,
 }

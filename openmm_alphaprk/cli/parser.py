@@ -42,12 +42,13 @@ def build_parser() -> argparse.ArgumentParser:
         epilog=f"Integrators: {INTEGRATOR_HELP}.",
     )
     sub = parser.add_subparsers(
-        dest="command", required=True, metavar="{systems,run,compare,analyze,sweep,bench}"
+        dest="command", required=True, metavar="{systems,run,compare,analyze,validate,sweep,bench}"
     )
     _add_systems_parser(sub)
     _add_run_parser(sub)
     _add_compare_parser(sub)
     _add_analyze_parser(sub)
+    _add_validate_parser(sub)
     _add_sweep_parser(sub)
     return parser
 
@@ -199,6 +200,44 @@ def _add_analyze_parser(sub) -> None:
     )
     analyze.add_argument("--no-plot", action="store_true", help="skip the figures (no matplotlib needed)")
     analyze.add_argument("--quiet", action="store_true", help="no progress bars")
+
+
+def _add_validate_parser(sub) -> None:
+    validate = sub.add_parser(
+        "validate",
+        help="does the integrator bend the physics? equipartition, order, rescaling, T and V against h",
+        description=(
+            "Check run directories written with `alphaprk run --velocity-interval N` (trajectory.trr: "
+            "positions and velocities) with physical_validation (Merz & Shirts, PLOS ONE 2018): (a) the "
+            "temperature (K) of each partition of the kinetic energy (translation, rotation, internal; "
+            "solute and solvent; random halves of the molecules) against the run's own and against "
+            "--reference, in combined standard errors; (b) the integrator's order from the fluctuations of "
+            "H (kJ/mol) at several step sizes, or for +rescale integrators whether H sits at round-off; (c) "
+            "what the velocity scaling did (summary.json's rescaling) and the power of h it shrinks with; "
+            "(d) the mean kinetic temperature (K) and potential energy (kJ/mol) against h, with the h -> 0 "
+            "limit from the rattle rows. Directories of the same system, integrator and step are "
+            "independent segments: their spread gives the errors. Writes validation.json. Needs the "
+            'validate extra: pip install "openmm-alphaprk[validate]".'
+        ),
+    )
+    validate.add_argument("runs", nargs="+", metavar="RUN_DIR", help="run directories, all of one system")
+    validate.add_argument(
+        "--reference",
+        nargs="+",
+        default=None,
+        metavar="RUN_DIR",
+        help="run directories of one setting to compare the partition temperatures with",
+    )
+    validate.add_argument(
+        "-o", "--output", default="validation.json", help="the JSON written (default validation.json here)"
+    )
+    validate.add_argument(
+        "--seed", type=int, default=0, help="seed of the random halves and of the bootstrap (default 0)"
+    )
+    validate.add_argument(
+        "--workers", type=positive, default=1, help="processes reading the trajectories (default 1)"
+    )
+    validate.add_argument("--quiet", action="store_true", help="no progress bars")
 
 
 def _add_sweep_parser(sub) -> None:
