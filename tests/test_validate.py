@@ -314,9 +314,17 @@ def test_equipartition_refuses_too_few_frames_and_no_velocities():
     universe = mda.Universe.empty(prepared.n_atoms, trajectory=True)
     from MDAnalysis.coordinates.memory import MemoryReader
 
-    universe.load_new(np.array([positions] * 5), format=MemoryReader)
+    velocities = np.ones_like(positions)
+    universe.load_new(np.array([positions] * 5), velocities=np.array([velocities] * 5), format=MemoryReader)
     with pytest.raises(InputError, match=rf"5 frames .* at least {MIN_FRAMES}"):
         Equipartition.from_system(universe, prepared.system, resnames=["HOH"] * prepared.n_atoms).run()
     universe.load_new(np.array([positions] * MIN_FRAMES), format=MemoryReader)
     with pytest.raises(InputError, match="no velocities"):
         Equipartition.from_system(universe, prepared.system, resnames=["HOH"] * prepared.n_atoms).run()
+
+
+def test_two_workers_give_the_same_temperatures(run_dirs):
+    serial = validate([run_dirs["rattle1"]]).equipartition["settings"]["rattle h=1 fs"]["groups"]
+    parallel = validate([run_dirs["rattle1"]], workers=2).equipartition["settings"]["rattle h=1 fs"]["groups"]
+    assert parallel == serial
+    assert parallel["system"]["total"]["temperature_K"] > 100.0

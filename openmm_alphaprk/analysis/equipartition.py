@@ -346,11 +346,6 @@ class Equipartition(AnalysisBase):
         )
 
     def _prepare(self):
-        if self.n_frames < MIN_FRAMES:
-            raise InputError(
-                f"{self.n_frames} frames with velocities; the equipartition estimates need at least "
-                f"{MIN_FRAMES} (more frames, or a smaller velocity interval)."
-            )
         if not self._trajectory.ts.has_velocities:
             raise InputError("the trajectory has no velocities; give one with velocities (e.g. a TRR file).")
         self.results.kinetic_energy_per_molecule = []
@@ -378,6 +373,11 @@ class Equipartition(AnalysisBase):
         pv = import_physical_validation()
         util = pv.util.kinetic_energy
         kinetic = self.results.kinetic_energy_per_molecule
+        if len(kinetic) < MIN_FRAMES:  # here, after the workers' frames are joined
+            raise InputError(
+                f"{len(kinetic)} frames with velocities; the equipartition estimates need at least "
+                f"{MIN_FRAMES} (more frames, or a smaller velocity interval)."
+            )
         n_atoms, n_molecules = len(self._masses), self._n_molecules
         dof_per_molecule = util.calc_ndof(
             n_atoms, n_molecules, self._first, self._constraints, self._translation, self._rotation

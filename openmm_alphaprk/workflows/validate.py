@@ -357,9 +357,10 @@ def _equipartition_of_run(record: RunRecord, seed: int, workers: int, progress: 
     """Run :class:`~openmm_alphaprk.analysis.Equipartition` on a run's ``trajectory.trr``."""
     universe = rundir.open_universe(record.path, rundir.TRR_FILE)
     check = Equipartition.from_system(universe, record.system, halves_seed=seed, bootstrap_seed=seed)
-    options = {"verbose": progress, "progressbar_kwargs": {"desc": f"{record.path.name} frames"}}
-    if workers > 1:
-        options |= {"backend": "multiprocessing", "n_workers": workers}
+    if workers > 1:  # MDAnalysis shows no progress bar with a parallel backend
+        options = {"backend": "multiprocessing", "n_workers": workers}
+    else:
+        options = {"verbose": progress, "progressbar_kwargs": {"desc": f"{record.path.name} frames"}}
     return check.run(**options)
 
 
