@@ -21,9 +21,13 @@ the same command resumes an interrupted run):
     (``OUTPUT/order/<integrator>@<h>fs/``), for the order of the fluctuations of H and
     the power of h the scaling shrinks with.
 
-The analyses are ``alphaprk validate`` (:mod:`openmm_alphaprk.workflows.validate`) and
-:func:`~openmm_alphaprk.workflows.transport.transport_of_runs`, run over these folders by
-``report``, which writes ``OUTPUT/physics.json``. The command is ``alphaprk bench physics``
+``report`` reads every finished run directory of the three and writes ``OUTPUT/physics.json``:
+``alphaprk validate`` (:func:`~openmm_alphaprk.workflows.validate.validate`) of the segments
+against RATTLE at the smallest step and of the order runs;
+:func:`~openmm_alphaprk.workflows.transport.transport_of_runs` of the segments; per setting
+the mean O–O g(r) and oxygen MSD over its segments (for figures); and per stress row the
+partition temperatures over consecutive windows
+(:class:`~openmm_alphaprk.analysis.Equipartition`). The command is ``alphaprk bench physics``
 (:func:`main`); ``--help`` lists its options.
 """
 
@@ -135,6 +139,88 @@ def run_order(prepared: PreparedSystem, args: argparse.Namespace, output: Path) 
             )
 
 
+def finished_runs(folder: Path) -> list[Path]:
+    """Run directories under ``folder`` whose run is complete (``summary.json`` written), sorted."""
+    return sorted(path.parent for path in folder.glob("**/summary.json"))
+
+
+def report(args: argparse.Namespace, output: Path) -> dict:
+    """Analyse what the runs in ``output`` wrote; return the data of ``physics.json``."""
+    from ..workflows.transport import transport_of_runs
+    from ..workflows.validate import validate
+
+    data: dict = {"system": None, "frame_spacing_ps": FRAME_SPACING_PS, "arguments": {}}
+    for mode in ("segments", "stress", "order"):
+        arguments = output / f"{mode}_arguments.json"
+        if arguments.is_file():
+            data["arguments"][mode] = json.loads(arguments.read_text(encoding="utf-8"))
+    segments = finished_runs(output / "segments")
+    if segments:
+        reference = [
+            run for run in segments if run.parent.name == setting_folder("rattle", min(REFERENCE_STEPS_FS))
+        ]
+        validation = validate(segments, reference=reference or None, progress=not args.no_progress)
+        data["system"] = validation.system
+        data["segments"] = validation.as_dict()
+        data["transport"] = transport_of_runs(segments, progress=not args.no_progress).as_dict()
+        data["curves"] = _curves(segments)
+    order = finished_runs(output / "order")
+    if order:
+        data["order"] = validate(order, progress=not args.no_progress).as_dict()
+    stress = finished_runs(output / "stress")
+    if stress:
+        data["stress"] = {run.name: _windows(run, args.windows) for run in stress}
+    return data
+
+
+def _curves(runs: list[Path]) -> dict:
+    """Per setting folder: the mean O–O g(r) and oxygen MSD over its segments."""
+    import numpy as np
+
+    from ..analysis import WATER_OXYGENS, Diffusion, oxygen_rdf
+    from ..runs import rundir
+
+    settings: dict[str, list[Path]] = {}
+    for run in runs:
+        settings.setdefault(run.parent.name, []).append(run)
+    curves = {}
+    for name, group in settings.items():
+        rdfs, msds = [], []
+        for run in group:
+            universe = rundir.open_universe(run)
+            rdf = oxygen_rdf(universe)
+            msd = Diffusion(universe, select=WATER_OXYGENS).run()
+            rdfs.append(rdf.results.rdf)
+            msds.append(msd.results.timeseries)
+        length = min(len(m) for m in msds)
+        curves[name] = {
+            "r_angstrom": rdf.results.bins.tolist(),
+            "g": np.mean(rdfs, axis=0).tolist(),
+            "lag_ps": msd.results.delta_t_values[:length].tolist(),
+            "msd_angstrom2": np.mean([m[:length] for m in msds], axis=0).tolist(),
+        }
+    return curves
+
+
+def _windows(run: Path, count: int) -> dict:
+    """Partition temperatures (K) of a stress run over ``count`` consecutive windows of its frames."""
+    from ..analysis import Equipartition
+    from ..runs import rundir
+
+    system = mm.XmlSerializer.deserialize((run / rundir.SYSTEM_FILE).read_text(encoding="utf-8"))
+    universe = rundir.open_universe(run, rundir.TRR_FILE)
+    frames = universe.trajectory.n_frames
+    edges = [round(i * frames / count) for i in range(count + 1)]
+    windows = []
+    for start, stop in zip(edges[:-1], edges[1:]):
+        check = Equipartition.from_system(universe, system).run(start=start, stop=stop)
+        universe.trajectory[stop - 1]
+        windows.append(
+            {"end_ps": float(universe.trajectory.time), "temperatures": check.results.temperatures}
+        )
+    return {"frames": frames, "windows": windows}
+
+
 def _prepared(args: argparse.Namespace) -> PreparedSystem:
     definition = load_definition(args.system)
     if args.hydrogen_mass is not None:
@@ -148,7 +234,9 @@ def _parser() -> argparse.ArgumentParser:
         description="NVE segments from independent NVT starts and a long stress run, with positions "
         "and velocities saved, for `alphaprk validate` and the transport analyses.",
     )
-    parser.add_argument("mode", choices=("segments", "stress", "order"), help="which runs")
+    parser.add_argument(
+        "mode", choices=("segments", "stress", "order", "report"), help="which runs, or report"
+    )
     parser.add_argument("--system", default="tip3p-2nm", help="system name (default tip3p-2nm)")
     parser.add_argument("--hydrogen-mass", type=float, default=None, help="hydrogen mass (amu) of a solute")
     parser.add_argument("--rows", nargs="+", default=None, help="integrator names (default: the mode's)")
@@ -165,15 +253,21 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--platform", default="CPU", help="OpenMM platform (default CPU)")
     parser.add_argument("--threads", type=int, default=None, help="CPU threads per run")
     parser.add_argument("--output", default="alphaprk-physics", help="output folder")
+    parser.add_argument("--windows", type=int, default=10, help="report: windows of each stress run")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
+    output = Path(args.output)
+    if args.mode == "report":
+        path = output / "physics.json"
+        path.write_text(json.dumps(report(args, output), indent=1) + "\n", encoding="utf-8")
+        print(f"written: {path}", file=sys.stderr)
+        return 0
     if args.rows is None:
         args.rows = list({"segments": SEGMENT_ROWS, "stress": STRESS_ROWS, "order": ORDER_ROWS}[args.mode])
-    output = Path(args.output)
     output.mkdir(parents=True, exist_ok=True)
     prepared = _prepared(args)
     (output / f"{args.mode}_arguments.json").write_text(

@@ -23,6 +23,7 @@ unless :meth:`Validation.write` is called (the command line writes ``validation.
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import io
 import json
 import math
@@ -239,12 +240,17 @@ def read_run(path: Path) -> RunRecord:
 
 
 def _check_one_system(records: list[RunRecord]) -> None:
-    """Refuse runs of different systems, naming each system and its runs."""
+    """Refuse runs of different systems, naming each system and its runs.
+
+    Runs of one system may start from different states (independent segments): what must
+    agree is the System itself (masses, constraints, forces), compared as its XML.
+    """
     systems: dict[tuple, list[str]] = {}
     for record in records:
+        xml = mm.XmlSerializer.serialize(record.system).encode()
         key = (
             record.parameters["system"],
-            record.parameters.get("system_key"),
+            hashlib.sha256(xml).hexdigest(),
             record.system.getNumParticles(),
         )
         systems.setdefault(key, []).append(str(record.path))
