@@ -91,3 +91,16 @@ def test_the_long_runs_page_is_what_its_data_renders():
     """docs/long_runs.md's blocks are ``python -m tools.reports.long_runs``'s (run it after new runs)."""
     assert long_runs.differences() == []
     assert {"cuda long", "cuda cost", "openmm dhfr"} <= set(long_runs.render()[long_runs.PAGE])
+
+
+def test_the_physics_page_is_what_its_data_renders():
+    """docs/physics.md's blocks are ``python -m tools.reports.physics``'s; its provenance names the data."""
+    from tools.reports import physics
+
+    assert physics.differences() == []
+    blocks = physics.render()[physics.PAGE]
+    for name, text in blocks.items():
+        if name.endswith("provenance"):
+            named = {a or b for a, b in NAMED.findall(text)}
+            assert named and named <= set(sources.data_files()), name
+            assert all(sources.source(path).date in text for path in named), name

@@ -164,6 +164,7 @@ def report(args: argparse.Namespace, output: Path) -> dict:
         data["segments"] = validation.as_dict()
         data["transport"] = transport_of_runs(segments, progress=not args.no_progress).as_dict()
         data["curves"] = _curves(segments)
+        data["paired"] = paired_means(segments, setting_folder("rattle", min(REFERENCE_STEPS_FS)))
     order = finished_runs(output / "order")
     if order:
         data["order"] = validate(order, progress=not args.no_progress).as_dict()
@@ -171,6 +172,40 @@ def report(args: argparse.Namespace, output: Path) -> dict:
     if stress:
         data["stress"] = {run.name: _windows(run, args.windows) for run in stress}
     return data
+
+
+def paired_means(runs: list[Path], reference: str) -> dict:
+    """Mean temperature and potential energy of each setting against the reference's, start by start.
+
+    Segments of one start share the start state and so E_ref: the difference of their means
+    (``energies.csv``, the rows after the start) to the reference's is free of the spread
+    between starts. Per setting folder: mean ± standard error over starts of ΔT (K) and ΔU
+    (kJ/mol), and each start's own means.
+    """
+    import numpy as np
+
+    from ..runs import read_energies
+
+    means: dict[str, dict[str, tuple[float, float]]] = {}
+    for run in runs:
+        rows = read_energies(run / "energies.csv")[1:]
+        means.setdefault(run.parent.name, {})[run.name] = (float(rows[:, 5].mean()), float(rows[:, 2].mean()))
+    base = means.get(reference, {})
+    paired = {}
+    for name, starts in means.items():
+        shared = sorted(set(starts) & set(base))
+        if len(shared) < 2:
+            continue
+        d = np.array([[starts[k][0] - base[k][0], starts[k][1] - base[k][1]] for k in shared])
+        error = d.std(axis=0, ddof=1) / np.sqrt(len(shared))
+        paired[name] = {
+            "starts": shared,
+            "temperature_difference_K": [float(d[:, 0].mean()), float(error[0])],
+            "potential_difference_kJ_per_mol": [float(d[:, 1].mean()), float(error[1])],
+            "temperature_K": [starts[k][0] for k in shared],
+            "potential_kJ_per_mol": [starts[k][1] for k in shared],
+        }
+    return paired
 
 
 def _curves(runs: list[Path]) -> dict:

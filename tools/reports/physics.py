@@ -1,0 +1,403 @@
+"""The generated blocks and figures of docs/physics.md from docs/data/physics/ (``bench physics report``).
+
+``python -m tools.reports.physics`` rewrites the blocks and the figures; ``--check`` only
+compares the blocks (exit 1 if one differs from what the data renders).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from tools.reports.markdown import generator_main, markdown_table, stale_blocks
+from tools.reports.numbers import sig
+from tools.reports.sources import DOCS, ROOT, Source, load
+
+PAGE = DOCS / "physics.md"
+WATER = "physics/tip3p-2nm.json"
+SOLUTE = "physics/villin-h3.json"
+FIGURES = DOCS / "figures"
+#: The rows whose velocities are scaled, in the page's order.
+RESCALED = ("rattle+rescale", "rattle+rescale@10", "rattle4+rescale")
+#: How far (combined standard errors) a rescaled row may sit from the reference (the issue's goal).
+GOAL_ERRORS = 2.0
+#: A published TIP3P self-diffusion coefficient beside ours (1e-5 cm²/s).
+PUBLISHED_D = (
+    "5.85 ± 0.08 (TIP3P as modified for CHARMM, 298 K, 216 molecules, truncated electrostatics, "
+    "no finite-size correction: Mark & Nilsson, J. Phys. Chem. A 105 (2001) 9954)"
+)
+
+
+def _pm(value: float | None, error: float | None, digits: int = 3) -> str:
+    if value is None or value != value:
+        return "-"
+    if error is None or error != error:
+        return f"{value:.{digits}g}"
+    return f"{value:.{digits}g} ± {sig(error)}"
+
+
+def _provenance(source: Source, data: dict) -> str:
+    arguments = data["arguments"]
+    parts = []
+    if "segments" in arguments:
+        a = arguments["segments"]
+        parts.append(
+            f"segments: {a['starts']} starts {a['spacing']:g} ps of Langevin dynamics apart, "
+            f"{a['length']:g} ps of NVE each per row"
+        )
+    if "stress" in arguments:
+        a = arguments["stress"]
+        parts.append(
+            f"stress: {a['time']:g} ps ({a['time_multi']:g} ps for compositions) at {a['timesteps'][0]:g} fs"
+        )
+    if "order" in arguments:
+        a = arguments["order"]
+        parts.append(f"order: {a['length']:g} ps at " + ", ".join(f"{h:g}" for h in a["timesteps"]) + " fs")
+    return (
+        f"{data['system']}, CPU platform, {source.machine}, {source.date} (commit {source.commit}); "
+        + "; ".join(parts)
+        + f". Data: `docs/data/{source.path}`."
+    )
+
+
+def _label(setting: str) -> str:
+    """``rattle+rescale h=2 fs`` → ``rattle+rescale`` at 2 fs."""
+    name, _, step = setting.partition(" h=")
+    return f"`{name}` at {step}"
+
+
+def _gap(group: dict, a: str, b: str) -> tuple[float, float]:
+    """Mean and standard error over segments of T_a − T_b (K)."""
+    first, second = group[a].get("segment_temperatures_K"), group[b].get("segment_temperatures_K")
+    if not first or not second or len(first) < 2:
+        return group[a]["temperature_K"] - group[b]["temperature_K"], math.nan
+    differences = np.array(first) - np.array(second)
+    return float(differences.mean()), float(differences.std(ddof=1) / math.sqrt(len(differences)))
+
+
+def equipartition_table(data: dict) -> str:
+    """Partition temperatures per setting, their gap, and the distance from the reference in errors."""
+    eq = data["segments"]["equipartition"]
+    reference = eq["reference"]["label"]
+    rows = []
+    for label, setting in {reference: eq["reference"], **eq["settings"]}.items():
+        is_reference = label == reference
+        system = setting["groups"]["system"]
+        gap = _gap(system, "translational", "rotational")
+        halves = _halves(setting["groups"])
+        against = setting.get("against_reference", {}).get("system", {})
+        z = [against.get(p, {}).get("in_errors") for p in ("translational", "rotational")]
+        rows.append(
+            [
+                _label(label) + (" (reference)" if is_reference else ""),
+                _pm(system["total"]["temperature_K"], system["total"]["standard_error_K"], 4),
+                _pm(system["translational"]["temperature_K"], system["translational"]["standard_error_K"], 4),
+                _pm(system["rotational"]["temperature_K"], system["rotational"]["standard_error_K"], 4),
+                _pm(*gap, 2),
+                _pm(*halves, 2),
+                " / ".join("-" if v is None or is_reference else f"{v:+.1f}" for v in z),
+            ]
+        )
+    header = [
+        "setting",
+        "T total (K)",
+        "T translation (K)",
+        "T rotation (K)",
+        "T_tr − T_rot (K)",
+        "T half 1 − half 2 (K)",
+        "translation / rotation vs reference (errors)",
+    ]
+    return markdown_table(header, rows) + (
+        f"\n\nReference: {_label(reference)}. Errors: standard error of the mean over the independent "
+        "segments (one temperature per segment from physical_validation's partition of the kinetic energy); "
+        "distances from the reference in combined standard errors. Flagged by `alphaprk validate` "
+        f"({eq['flag_rule']}): " + (", ".join(_flag(f) for f in eq["flagged"]) or "none") + "."
+    )
+
+
+def _halves(groups: dict) -> tuple[float, float]:
+    a, b = groups["half 1"]["total"], groups["half 2"]["total"]
+    first, second = a.get("segment_temperatures_K"), b.get("segment_temperatures_K")
+    differences = np.array(first) - np.array(second)
+    return float(differences.mean()), float(differences.std(ddof=1) / math.sqrt(len(differences)))
+
+
+def _flag(flag: dict | str) -> str:
+    if isinstance(flag, str):
+        return flag
+    return ", ".join(f"{k} {v}" for k, v in flag.items())
+
+
+def goal_verdict(data: dict) -> str:
+    """Judge the goal: every rescaled row's partitions within 2 combined errors of the reference's."""
+    settings = data["segments"]["equipartition"]["settings"]
+    misses = []
+    for label, setting in settings.items():
+        if label.split(" h=")[0] not in RESCALED:
+            continue
+        for group, partitions in setting.get("against_reference", {}).items():
+            for partition, entry in partitions.items():
+                z = entry.get("in_errors")
+                if z is not None and abs(z) > GOAL_ERRORS:
+                    misses.append(f"{_label(label)} {group} {partition} {z:+.1f}")
+    if not misses:
+        return (
+            f"**Met**: every partition (whole system, random halves) of every rescaled row lies within "
+            f"{GOAL_ERRORS:g} combined standard errors of the reference's."
+        )
+    return "**Not met** for: " + "; ".join(misses) + " (combined standard errors)."
+
+
+def transport_table(data: dict) -> str:
+    """D, g(r) first peak, τ₂ and the VACF's first minimum per setting, against the reference."""
+    settings = data["transport"]["settings"]
+    reference = next(s for s in settings if s["integrator"] == "rattle" and s["timestep_ps"] == 0.0005)
+    quantities = (
+        ("diffusion", "D (1e-5 cm²/s, Yeh–Hummer)", 3),
+        ("rdf_peak_r_angstrom", "g(r) peak r (Å)", 4),
+        ("rdf_peak_g", "g(r) peak height", 3),
+        ("tau2_ps", "τ₂ (ps)", 3),
+        ("vacf_first_minimum_ps", "VACF first minimum (ps)", 3),
+    )
+    rows = []
+    for setting in [reference] + [s for s in settings if s is not reference]:
+        row = [_label(f"{setting['integrator']} h={setting['timestep_ps'] * 1000:g} fs")]
+        for key, _, digits in quantities:
+            mean, error = setting["mean"].get(key), setting["standard_error"].get(key)
+            text = _pm(mean, error, digits)
+            if setting is not reference and mean is not None and reference["mean"].get(key) is not None:
+                combined = math.hypot(error or 0.0, reference["standard_error"].get(key) or 0.0)
+                if combined > 0:
+                    text += f" ({(mean - reference['mean'][key]) / combined:+.1f})"
+            row.append(text)
+        rows.append(row)
+    header = ["setting"] + [title for _, title, _ in quantities]
+    return markdown_table(header, rows) + (
+        "\n\nMean ± standard error over the segments; in brackets the distance from RATTLE at 0.5 fs in "
+        "combined standard errors. D: water oxygens' MSD (MDAnalysis `EinsteinMSD`) fitted over 10–60 % of "
+        f"the longest lag, plus the Yeh–Hummer correction with TIP3P's viscosity "
+        f"{data['transport']['parameters'].get('viscosity_mPa_s', 0.321)} mPa·s (González & Abascal, "
+        f"J. Chem. Phys. 132 (2010) 096101). A published value: {PUBLISHED_D}."
+    )
+
+
+def rescaling_table(data: dict) -> str:
+    """Tabulate what the scaling did per rescaled setting: mean and RMS of s − 1, energy added per ns."""
+    runs = data["segments"]["rescaling"]["runs"]
+    by_setting: dict[str, list[dict]] = {}
+    for path, totals in runs.items():
+        by_setting.setdefault(Path(path).parent.name, []).append(totals)
+    rows = []
+    for name, group in sorted(
+        by_setting.items(), key=lambda item: (float(item[0].split("@")[-1][:-2]), item[0])
+    ):
+        values = {key: np.array([g[key] for g in group]) for key in group[0] if key != "rescalings"}
+        cells = []
+        for key in ("mean_scale_change", "rms_scale_change", "added_energy_per_ns"):
+            v = values[key]
+            cells.append(
+                _pm(float(v.mean()), float(v.std(ddof=1) / math.sqrt(len(v))) if len(v) > 1 else None, 2)
+            )
+        integrator, _, step = name.rpartition("@")
+        rows.append([f"`{integrator}` at {step[:-2]} fs"] + cells)
+    header = ["setting", "mean s − 1", "RMS s − 1", "energy added (kJ/mol/ns)"]
+    return markdown_table(header, rows) + (
+        "\n\nPer segment over all its rescalings (`summary.json`'s `rescaling`), mean ± standard error "
+        "over the segments. Energy added = −Σ(H − E_ref before each scaling) per ns of simulated time."
+    )
+
+
+def order_table(data: dict) -> str:
+    """Tabulate the order of H's fluctuations and the rescaled rows' round-off, from the order runs."""
+    order = data["order"]["order"]
+    rows = []
+    for name, entry in order.items():
+        if entry["kind"] == "order":
+            fluctuations = ", ".join(f"{sig(v, 2)}" for v in entry["rmsd_H_kJ_per_mol"])
+            rows.append([f"`{name}`", fluctuations, f"{entry['fitted_order']:.2f}"])
+        else:
+            relative = ", ".join(sig(r["relative"], 2) for r in entry["rows"])
+            rows.append(
+                [
+                    f"`{name}`",
+                    f"RMS(H − E_ref)/|E_ref|: {relative}",
+                    "round-off" if all(r["at_round_off"] for r in entry["rows"]) else "above round-off",
+                ]
+            )
+    steps = ", ".join(f"{h:g}" for h in data["arguments"]["order"]["timesteps"])
+    fits = data["order"]["rescaling"].get("fits", {})
+    powers = "; ".join(
+        f"`{name}`: "
+        + ", ".join(
+            f"{key} {value['power']:.2f}"
+            for key, value in fit.items()
+            if isinstance(value, dict) and "power" in value
+        )
+        for name, fit in fits.items()
+    )
+    return markdown_table(["integrator", f"RMS fluctuation of H at {steps} fs (kJ/mol)", "order"], rows) + (
+        f"\n\nOrder: slope of log RMS(H fluctuation) against log h (physical_validation's "
+        f"`integrator.convergence` data). How the scaling shrinks with h (fitted powers): {powers or '-'}."
+    )
+
+
+def temperature_table(data: dict) -> str:
+    """Tabulate mean T and U per setting against RATTLE at 0.5 fs from the same starts; the h → 0 limit."""
+    paired = data["paired"]
+    # RATTLE at 1 fs and 0.5 fs (the reference, difference 0): the O(h²) limit is Δ(1 fs) − 4/3 Δ(1 fs)
+    one = paired.get("rattle@1fs")
+    limit = {}
+    if one:
+        for key in ("temperature_difference_K", "potential_difference_kJ_per_mol"):
+            value, error = one[key]
+            limit[key] = (-value / 3, error / 3)
+    rows = []
+    for name, entry in sorted(paired.items(), key=lambda item: (_step(item[0]), item[0])):
+        if entry["temperature_difference_K"][1] == 0:  # the reference itself
+            continue
+        cells = [f"`{name.rpartition('@')[0]}` at {name.rpartition('@')[2][:-2]} fs"]
+        for key in ("temperature_difference_K", "potential_difference_kJ_per_mol"):
+            value, error = entry[key]
+            cells.append(_signed(value, error))
+            if key in limit and error > 0:
+                cells.append(f"{(value - limit[key][0]) / math.hypot(error, limit[key][1]):+.1f}")
+            else:
+                cells.append("-")
+        rows.append(cells)
+    header = ["setting", "ΔT (K)", "ΔT − limit (errors)", "ΔU (kJ/mol)", "ΔU − limit (errors)"]
+    limit_text = "-"
+    if limit:
+        t, u = limit["temperature_difference_K"], limit["potential_difference_kJ_per_mol"]
+        limit_text = f"ΔT = {_signed(*t)} K, ΔU = {_signed(*u)} kJ/mol"
+    return markdown_table(header, rows) + (
+        "\n\nΔ: the setting's mean over its run (`energies.csv`) minus RATTLE at 0.5 fs's from the same "
+        "start (same E_ref), mean ± standard error over the starts. The h → 0 limit, from RATTLE at 1 fs "
+        f"and 0.5 fs with an h² error (Richardson): {limit_text}; the columns in errors are each row's "
+        "distance from it."
+    )
+
+
+def _step(folder: str) -> float:
+    return float(folder.rpartition("@")[2][:-2])
+
+
+def _signed(value: float, error: float) -> str:
+    return f"{value:+.2g} ± {sig(error)}"
+
+
+def stress_table(data: dict, gaps: tuple[tuple[str, str, str, str], ...]) -> str:
+    """Tabulate per stress row each gap (group a − group b) in the first and last window, and its trend."""
+    rows = []
+    for name, run in data["stress"].items():
+        times = np.array([w["end_ps"] for w in run["windows"]])
+        for group_a, a, group_b, b in gaps:
+            values = np.array([_window_gap(w, group_a, a, group_b, b) for w in run["windows"]])
+            fit = np.polyfit(times, values, 1, cov=True) if len(times) > 3 else None
+            trend = "-" if fit is None else _pm(100 * fit[0][0], 100 * math.sqrt(fit[1][0, 0]), 2)
+            integrator, _, step = name.rpartition("@")
+            rows.append(
+                [
+                    f"`{integrator}` at {step[:-2]} fs",
+                    f"{group_a} {a} − {group_b} {b}",
+                    f"{values[0]:+.1f}",
+                    f"{values[-1]:+.1f}",
+                    trend,
+                    f"{np.std(values, ddof=1):.1f}",
+                ]
+            )
+    header = ["row", "gap", "first window (K)", "last window (K)", "trend (K per 100 ps)", "spread (K)"]
+    windows = next(iter(data["stress"].values()))["windows"]
+    return markdown_table(header, rows) + (
+        f"\n\n{len(windows)} consecutive windows of each run; trend: least-squares slope of the gap against "
+        "time ± its standard error; spread: standard deviation of the gap over the windows."
+    )
+
+
+def _window_gap(window: dict, group_a: str, a: str, group_b: str, b: str) -> float:
+    temperatures = window["temperatures"]
+    return temperatures[group_a][a]["temperature_K"] - temperatures[group_b][b]["temperature_K"]
+
+
+def figures(data: dict, stem: str) -> None:
+    """Write the g(r) overlay, the MSD and the stress gaps against time as PNG files."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    if "curves" in data:
+        fig, (left, right) = plt.subplots(1, 2, figsize=(10, 4))
+        for name, curve in data["curves"].items():
+            left.plot(curve["r_angstrom"], curve["g"], label=name, lw=1)
+            right.plot(curve["lag_ps"], curve["msd_angstrom2"], label=name, lw=1)
+        left.set(xlabel="r (Å)", ylabel="g_OO(r)", xlim=(2.3, 8))
+        right.set(xlabel="lag (ps)", ylabel="MSD of O (Å²)")
+        left.legend(fontsize=6)
+        fig.tight_layout()
+        fig.savefig(FIGURES / f"physics_{stem}_structure.png", dpi=110)
+        plt.close(fig)
+    if "stress" in data:
+        fig, ax = plt.subplots(figsize=(7, 4))
+        solute = "solute" in next(iter(data["stress"].values()))["windows"][0]["temperatures"]
+        gap = (
+            ("solute", "total", "solvent", "total")
+            if solute
+            else ("system", "translational", "system", "rotational")
+        )
+        for name, run in data["stress"].items():
+            times = [w["end_ps"] for w in run["windows"]]
+            ax.plot(times, [_window_gap(w, *gap) for w in run["windows"]], marker="o", label=name)
+        ax.set(xlabel="end of window (ps)", ylabel=f"T {gap[0]} {gap[1]} − T {gap[2]} {gap[3]} (K)")
+        ax.axhline(0, color="grey", lw=0.5)
+        ax.legend(fontsize=7)
+        fig.tight_layout()
+        fig.savefig(FIGURES / f"physics_{stem}_stress.png", dpi=110)
+        plt.close(fig)
+
+
+def render(write_figures: bool = False) -> dict[Path, dict[str, str]]:
+    """Every generated block of docs/physics.md."""
+    blocks = {}
+    water, source = load(WATER)
+    blocks["water provenance"] = _provenance(source, water)
+    blocks["equipartition"] = equipartition_table(water) + "\n\n" + goal_verdict(water)
+    blocks["rescaling"] = rescaling_table(water)
+    blocks["temperature"] = temperature_table(water)
+    blocks["transport"] = transport_table(water)
+    if "order" in water:
+        blocks["order"] = order_table(water)
+    if "stress" in water:
+        blocks["water stress"] = stress_table(water, (("system", "translational", "system", "rotational"),))
+    if write_figures:
+        figures(water, "tip3p-2nm")
+    if (DOCS / "data" / SOLUTE).is_file():
+        solute, solute_source = load(SOLUTE)
+        blocks["solute provenance"] = _provenance(solute_source, solute)
+        blocks["solute stress"] = stress_table(
+            solute,
+            (
+                ("system", "translational", "system", "rotational and internal"),
+                ("solute", "total", "solvent", "total"),
+            ),
+        )
+        if write_figures:
+            figures(solute, "villin-h3")
+    return {PAGE: blocks}
+
+
+def differences() -> list[str]:
+    """Return ``PAGE: BLOCK`` for every block that is missing or differs from what the data renders."""
+    return stale_blocks(render(), ROOT)
+
+
+def main(argv: list[str] | None = None) -> int:
+    if not (argv and "--check" in argv):
+        render(write_figures=True)
+    return generator_main(render, __doc__.split("\n\n")[0], ROOT, argv)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
