@@ -213,9 +213,12 @@ def corrected_diffusion(
     diffusion_pbc : float
         D measured in the periodic box, in 1e-5 cm²/s (e.g.
         ``Diffusion(...).results.diffusion_coefficient``).
-    temperature, box_length, viscosity
-        As for :func:`yeh_hummer_correction` (K, nm of the cubic box's edge, mPa·s; or
-        Quantities).
+    temperature : float or openmm.unit.Quantity
+        Temperature (K), as for :func:`yeh_hummer_correction`.
+    box_length : float or openmm.unit.Quantity
+        Edge of the cubic box (nm).
+    viscosity : float or openmm.unit.Quantity, default TIP3P_SHEAR_VISCOSITY_MPA_S
+        Shear viscosity of the solvent (mPa·s).
 
     Returns
     -------

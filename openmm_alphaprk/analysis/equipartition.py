@@ -77,6 +77,11 @@ def import_physical_validation():
 def molecules_of(system: mm.System) -> list[list[int]]:
     """Return the System's molecules (atom indices), as OpenMM groups them (bonds and constraints).
 
+    Parameters
+    ----------
+    system : openmm.System
+        The System; its molecules are read from a Reference-platform Context.
+
     Examples
     --------
     >>> from openmm_alphaprk.systems import prepare_system
@@ -138,6 +143,17 @@ def partition_temperature(kinetic: Sequence[float], dof: float, bootstrap_seed: 
     -------
     tuple of float
         T(mu) and its standard error (K); the error is NaN when too few uncorrelated frames remain.
+
+    Examples
+    --------
+    Kinetic energies of 100 degrees of freedom at 300 K, drawn independently (χ², 2K/(k_B T) ~ χ²₁₀₀):
+
+    >>> import numpy as np
+    >>> kb = 0.0083144626  # kJ/mol/K
+    >>> kinetic = 0.5 * kb * 300.0 * np.random.default_rng(1).chisquare(100, size=400)
+    >>> temperature, error = partition_temperature(kinetic, 100, bootstrap_seed=0)
+    >>> bool(abs(temperature - 300.0) < 3 * error), bool(0.5 < error < 3.0)  # σ ≈ 300 √(2/100) / √400 = 2.1
+    (True, True)
     """
     pv = import_physical_validation()
     kb = pv.data.UnitData.units("GROMACS").kb
@@ -552,6 +568,13 @@ def compare_settings(setting: dict, reference: dict) -> dict:
 
     Both are :func:`combine_segments` results; partitions present in both are compared:
     ``{group: {partition: {"difference_K", "error_K", "in_errors"}}}``.
+
+    Parameters
+    ----------
+    setting : dict
+        The setting's :func:`combine_segments` result.
+    reference : dict
+        The reference's, the same way.
 
     Examples
     --------
