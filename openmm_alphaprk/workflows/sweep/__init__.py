@@ -23,7 +23,7 @@ Configuration::
     energy_interval_fs = 20         # times, converted to steps for each step size
     trajectory_interval_fs = 100
     checkpoint_interval_fs = 1000
-    velocity_interval_fs = 4        # optional: trajectory.trr (positions and velocities) for VACF spectra (0: none)
+    velocity_interval_fs = 4        # optional: trajectory.trr, positions and velocities, for VACF (0: none)
     controller_interval_fs = 20     # optional: energy mode's controller.csv rows (default: energy interval)
     checkpoint_seconds = 60         # optional: also checkpoint after this much wall time (s)
     cpu_threads = 1                 # optional: threads per run on the CPU platform
