@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import re
 
 from ..platforms import AUTO
@@ -235,7 +236,13 @@ def _add_validate_parser(sub) -> None:
         "--seed", type=int, default=0, help="seed of the random halves and of the bootstrap (default 0)"
     )
     validate.add_argument(
-        "--workers", type=positive, default=1, help="processes reading the trajectories (default 1)"
+        "--workers",
+        type=positive,
+        default=min(
+            4, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+        ),
+        help="processes reading the trajectories (default: the cores of this machine, at most 4); the "
+        "temperatures do not depend on it",
     )
     validate.add_argument("--quiet", action="store_true", help="no progress bars")
 
