@@ -149,28 +149,36 @@ def report(args: argparse.Namespace, output: Path) -> dict:
     from ..workflows.transport import transport_of_runs
     from ..workflows.validate import validate
 
+    path = output / "physics.json"
     data: dict = {"system": None, "frame_spacing_ps": FRAME_SPACING_PS, "arguments": {}}
+    if path.is_file():  # what an earlier report found, its parts replaced by those asked for
+        data = json.loads(path.read_text(encoding="utf-8"))
     for mode in ("segments", "stress", "order"):
         arguments = output / f"{mode}_arguments.json"
         if arguments.is_file():
             data["arguments"][mode] = json.loads(arguments.read_text(encoding="utf-8"))
-    segments = finished_runs(output / "segments")
+    segments = finished_runs(output / "segments") if "segments" in args.parts else []
     if segments:
         reference = [
             run for run in segments if run.parent.name == setting_folder("rattle", min(REFERENCE_STEPS_FS))
         ]
-        validation = validate(segments, reference=reference or None, progress=not args.no_progress)
+        validation = validate(
+            segments, reference=reference or None, workers=args.workers, progress=not args.no_progress
+        )
         data["system"] = validation.system
         data["segments"] = validation.as_dict()
         data["transport"] = transport_of_runs(segments, progress=not args.no_progress).as_dict()
         data["curves"] = _curves(segments)
         data["paired"] = paired_means(segments, setting_folder("rattle", min(REFERENCE_STEPS_FS)))
-    order = finished_runs(output / "order")
+    order = finished_runs(output / "order") if "order" in args.parts else []
     if order:
-        data["order"] = validate(order, progress=not args.no_progress).as_dict()
-    stress = finished_runs(output / "stress")
+        data["order"] = validate(order, workers=args.workers, progress=not args.no_progress).as_dict()
+    stress = finished_runs(output / "stress") if "stress" in args.parts else []
     if stress:
-        data["stress"] = {run.name: _windows(run, args.windows) for run in stress}
+        data["stress"] = {run.name: _windows(run, args.windows, args.workers) for run in stress}
+        data["system"] = (
+            data["system"] or json.loads((stress[0] / "run.json").read_text(encoding="utf-8"))["system"]
+        )
     return data
 
 
@@ -237,7 +245,7 @@ def _curves(runs: list[Path]) -> dict:
     return curves
 
 
-def _windows(run: Path, count: int) -> dict:
+def _windows(run: Path, count: int, workers: int = 1) -> dict:
     """Partition temperatures (K) of a stress run over ``count`` consecutive windows of its frames."""
     from ..analysis import Equipartition
     from ..runs import rundir
@@ -248,7 +256,8 @@ def _windows(run: Path, count: int) -> dict:
     edges = [round(i * frames / count) for i in range(count + 1)]
     windows = []
     for start, stop in zip(edges[:-1], edges[1:]):
-        check = Equipartition.from_system(universe, system).run(start=start, stop=stop)
+        parallel = {"backend": "multiprocessing", "n_workers": workers} if workers > 1 else {}
+        check = Equipartition.from_system(universe, system).run(start=start, stop=stop, **parallel)
         universe.trajectory[stop - 1]
         windows.append(
             {"end_ps": float(universe.trajectory.time), "temperatures": check.results.temperatures}
@@ -289,6 +298,14 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--threads", type=int, default=None, help="CPU threads per run")
     parser.add_argument("--output", default="alphaprk-physics", help="output folder")
     parser.add_argument("--windows", type=int, default=10, help="report: windows of each stress run")
+    parser.add_argument("--workers", type=int, default=1, help="report: processes reading the trajectories")
+    parser.add_argument(
+        "--parts",
+        nargs="+",
+        choices=("segments", "order", "stress"),
+        default=["segments", "order", "stress"],
+        help="report: which runs to analyse again (the others are kept from OUTPUT/physics.json)",
+    )
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
     return parser
 
