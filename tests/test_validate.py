@@ -164,7 +164,13 @@ def test_partition_dofs_and_temperatures_add_up(heated_and_plain):
     assert "internal" not in system  # rigid water has none
     # the DOF-weighted partition temperatures make up the total's
     weighted = sum(system[k]["temperature_K"] * system[k]["dof"] for k in ("translational", "rotational"))
-    assert weighted / 438.0 == pytest.approx(system["total"]["temperature_K"], rel=0.02)
+    assert weighted / 438.0 == pytest.approx(system["total"]["temperature_K"], rel=1e-12)
+    # segment by segment: every partition from the same frames (2<K>/(N k_B)), so they add up exactly
+    for i, total in enumerate(system["total"]["segment_temperatures_K"]):
+        parts = sum(
+            system[k]["segment_temperatures_K"][i] * system[k]["dof"] for k in ("translational", "rotational")
+        )
+        assert parts / 438.0 == pytest.approx(total, rel=1e-12)
     halves = plain["groups"]["half 1"]["total"]["dof"] + plain["groups"]["half 2"]["total"]["dof"]
     assert halves == pytest.approx(438.0)
 

@@ -235,8 +235,10 @@ class Equipartition(AnalysisBase):
     results.kinetic_energy_per_molecule : list of dict
         Per frame, physical_validation's per-molecule kinetic energies (kJ/mol) by partition.
     results.temperatures : dict
-        ``{group: {partition: {"temperature_K", "standard_error_K", "dof"}}}``; group
-        ``"system"`` first; partitions without degrees of freedom are left out.
+        ``{group: {partition: {"temperature_K", "standard_error_K", "dof",
+        "frame_mean_temperature_K"}}}``: physical_validation's T(mu) and its error, and
+        2⟨K⟩/(N k_B) over every frame; group ``"system"`` first; partitions without degrees
+        of freedom are left out.
     results.temperature_K : float
         The reference temperature used (K).
     results.distances : dict
@@ -395,6 +397,7 @@ class Equipartition(AnalysisBase):
                 f"{MIN_FRAMES} (more frames, or a smaller velocity interval)."
             )
         n_atoms, n_molecules = len(self._masses), self._n_molecules
+        kb = pv.data.UnitData.units("GROMACS").kb
         dof_per_molecule = util.calc_ndof(
             n_atoms, n_molecules, self._first, self._constraints, self._translation, self._rotation
         )
@@ -407,11 +410,13 @@ class Equipartition(AnalysisBase):
             for key in PARTITIONS:
                 if dofs[key] < 1e-9:
                     continue
-                t, error = partition_temperature([s[key] for s in series], dofs[key], self._seed)
+                values = [s[key] for s in series]
+                t, error = partition_temperature(values, dofs[key], self._seed)
                 temperatures[name][key] = {
                     "temperature_K": t,
                     "standard_error_K": error,
                     "dof": float(dofs[key]),
+                    "frame_mean_temperature_K": 2.0 * float(np.mean(values)) / (dofs[key] * kb),
                 }
         reference = self._temperature
         if reference is None:
@@ -490,11 +495,14 @@ def combine_segments(temperatures: Sequence[dict], frames: Sequence[int] | None 
     """Combine the partition temperatures of independent segments of one setting, with their errors.
 
     Each partition's deviation is its temperature minus the whole system's (``"system"``,
-    ``"total"``) in the same segment. With several segments, the temperature and the
+    ``"total"``) in the same segment. With several segments, a segment's temperature is
+    2⟨K⟩/(N k_B) over all its frames (``frame_mean_temperature_K``, where given: every
+    partition from the same frames, so they add up to the whole), the temperature and the
     deviation are means over the segments and their errors the standard errors of those
-    means (the spread between segments); with one, the errors are physical_validation's
-    own (the deviation's: both errors in quadrature, which overstates it a little, the
-    partition being part of the whole).
+    means (the spread between segments); with one, they are physical_validation's T(mu)
+    and its error (from the decorrelated frames it keeps, which it chooses for each
+    partition on its own; the deviation's error: both in quadrature, which overstates it
+    a little, the partition being part of the whole).
 
     Parameters
     ----------
@@ -528,8 +536,13 @@ def combine_segments(temperatures: Sequence[dict], frames: Sequence[int] | None 
     for group, partitions in temperatures[0].items():
         groups[group] = {}
         for partition, first in partitions.items():
-            values = np.array([t[group][partition]["temperature_K"] for t in temperatures])
-            whole = np.array([t["system"]["total"]["temperature_K"] for t in temperatures])
+            key = (
+                "frame_mean_temperature_K"
+                if n > 1 and "frame_mean_temperature_K" in first
+                else "temperature_K"
+            )
+            values = np.array([t[group][partition][key] for t in temperatures])
+            whole = np.array([t["system"]["total"][key] for t in temperatures])
             deviations = values - whole
             if n > 1:
                 error = float(np.std(values, ddof=1) / np.sqrt(n))
