@@ -173,7 +173,12 @@ def report(args: argparse.Namespace, output: Path) -> dict:
     order = finished_runs(output / "order") if "order" in args.parts else []
     if order:
         data["order"] = validate(order, workers=args.workers, progress=not args.no_progress).as_dict()
-    stress = finished_runs(output / "stress") if "stress" in args.parts else []
+    # a stress run still going (or stopped) is read as far as it got, and marked so
+    stress = (
+        sorted(path.parent for path in (output / "stress").glob("*/trajectory.trr"))
+        if "stress" in args.parts
+        else []
+    )
     if stress:
         data["stress"] = {run.name: _windows(run, args.windows, args.workers) for run in stress}
         data["system"] = (
@@ -262,7 +267,7 @@ def _windows(run: Path, count: int, workers: int = 1) -> dict:
         windows.append(
             {"end_ps": float(universe.trajectory.time), "temperatures": check.results.temperatures}
         )
-    return {"frames": frames, "windows": windows}
+    return {"frames": frames, "complete": (run / rundir.SUMMARY_FILE).is_file(), "windows": windows}
 
 
 def _prepared(args: argparse.Namespace) -> PreparedSystem:

@@ -19,6 +19,7 @@ from tools.reports.sources import DOCS, ROOT, Source, load
 PAGE = DOCS / "physics.md"
 WATER = "physics/tip3p-2nm.json"
 SOLUTE = "physics/villin-h3.json"
+CLUSTER = "physics/water-cluster.json"
 FIGURES = DOCS / "figures"
 #: The rows whose velocities are scaled, in the page's order.
 RESCALED = ("rattle+rescale", "rattle+rescale@10", "rattle4+rescale")
@@ -56,8 +57,9 @@ def _provenance(source: Source, data: dict) -> str:
     if "order" in arguments:
         a = arguments["order"]
         parts.append(f"order: {a['length']:g} ps at " + ", ".join(f"{h:g}" for h in a["timesteps"]) + " fs")
+    platform = next(iter(arguments.values()))["platform"]
     return (
-        f"{data['system']}, CPU platform, {source.machine}, {source.date} (commit {source.commit}); "
+        f"{data['system']}, {platform} platform, {source.machine}, {source.date} (commit {source.commit}); "
         + "; ".join(parts)
         + f". Data: `docs/data/{source.path}`."
     )
@@ -232,15 +234,16 @@ def order_table(data: dict) -> str:
     powers = "; ".join(
         f"`{name}`: "
         + ", ".join(
-            f"{key} {value['power']:.2f}"
-            for key, value in fit.items()
-            if isinstance(value, dict) and "power" in value
+            f"{key.replace('_', ' ')} {value:.2f} (expected {fit['expected_power'][key]})"
+            for key, value in fit["power_of_h"].items()
         )
         for name, fit in fits.items()
+        if fit.get("power_of_h")
     )
     return markdown_table(["integrator", f"RMS fluctuation of H at {steps} fs (kJ/mol)", "order"], rows) + (
-        f"\n\nOrder: slope of log RMS(H fluctuation) against log h (physical_validation's "
-        f"`integrator.convergence` data). How the scaling shrinks with h (fitted powers): {powers or '-'}."
+        "\n\nOrder: slope of log RMS(H fluctuation) against log h (physical_validation's "
+        "`integrator.convergence` data); the rescaled rows: RMS(H − E_ref) relative to |E_ref|. How the "
+        f"scaling's statistics shrink with h over runs of equal length (fitted powers): {powers or '-'}."
     )
 
 
@@ -298,9 +301,10 @@ def stress_table(data: dict, gaps: tuple[tuple[str, str, str, str], ...]) -> str
             fit = np.polyfit(times, values, 1, cov=True) if len(times) > 3 else None
             trend = "-" if fit is None else _pm(100 * fit[0][0], 100 * math.sqrt(fit[1][0, 0]), 2)
             integrator, _, step = name.rpartition("@")
+            length = "" if run.get("complete", True) else f" (stopped at {times[-1]:.0f} ps)"
             rows.append(
                 [
-                    f"`{integrator}` at {step[:-2]} fs",
+                    f"`{integrator}` at {step[:-2]} fs{length}",
                     f"{group_a} {a} − {group_b} {b}",
                     f"{values[0]:+.1f}",
                     f"{values[-1]:+.1f}",
@@ -311,14 +315,17 @@ def stress_table(data: dict, gaps: tuple[tuple[str, str, str, str], ...]) -> str
     header = ["row", "gap", "first window (K)", "last window (K)", "trend (K per 100 ps)", "spread (K)"]
     windows = next(iter(data["stress"].values()))["windows"]
     return markdown_table(header, rows) + (
-        f"\n\n{len(windows)} consecutive windows of each run; trend: least-squares slope of the gap against "
-        "time ± its standard error; spread: standard deviation of the gap over the windows."
+        f"\n\n{len(windows)} consecutive windows of each run, each partition's temperature 2⟨K⟩/(N k_B) over "
+        "the window's frames; trend: least-squares slope of the gap against time ± its standard error; "
+        "spread: standard deviation of the gap over the windows."
     )
 
 
 def _window_gap(window: dict, group_a: str, a: str, group_b: str, b: str) -> float:
-    temperatures = window["temperatures"]
-    return temperatures[group_a][a]["temperature_K"] - temperatures[group_b][b]["temperature_K"]
+    """T_a − T_b (K) of a window, each 2⟨K⟩/(N k_B) over the window's frames (where the data have it)."""
+    first, second = window["temperatures"][group_a][a], window["temperatures"][group_b][b]
+    key = "frame_mean_temperature_K" if "frame_mean_temperature_K" in first else "temperature_K"
+    return first[key] - second[key]
 
 
 def figures(data: dict, stem: str) -> None:
@@ -369,6 +376,12 @@ def render(write_figures: bool = False) -> dict[Path, dict[str, str]]:
     blocks["transport"] = transport_table(water)
     if "order" in water:
         blocks["order"] = order_table(water)
+    if (DOCS / "data" / CLUSTER).is_file():
+        cluster, cluster_source = load(CLUSTER)
+        blocks["cluster provenance"] = _provenance(cluster_source, cluster).replace(
+            "CPU platform", "Reference platform"
+        )
+        blocks["cluster order"] = order_table(cluster)
     if "stress" in water:
         blocks["water stress"] = stress_table(water, (("system", "translational", "system", "rotational"),))
     if write_figures:
