@@ -173,6 +173,7 @@ def report(args: argparse.Namespace, output: Path) -> dict:
     order = finished_runs(output / "order") if "order" in args.parts else []
     if order:
         data["order"] = validate(order, workers=args.workers, progress=not args.no_progress).as_dict()
+        data["system"] = data["system"] or data["order"]["system"]
     # a stress run still going (or stopped) is read as far as it got, and marked so
     stress = (
         sorted(path.parent for path in (output / "stress").glob("*/trajectory.trr"))
