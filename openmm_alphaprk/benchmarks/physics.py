@@ -268,7 +268,18 @@ def _windows(run: Path, count: int, workers: int = 1) -> dict:
         windows.append(
             {"end_ps": float(universe.trajectory.time), "temperatures": check.results.temperatures}
         )
-    return {"frames": frames, "complete": (run / rundir.SUMMARY_FILE).is_file(), "windows": windows}
+    result = {"frames": frames, "complete": (run / rundir.SUMMARY_FILE).is_file(), "windows": windows}
+    if result["complete"]:
+        summary = json.loads((run / rundir.SUMMARY_FILE).read_text(encoding="utf-8"))
+        keys = (
+            "simulated_ps",
+            "degrees_of_freedom",
+            "drift_per_dof",
+            "drift_per_dof_standard_error",
+            "rescaling",
+        )
+        result["summary"] = {key: summary[key] for key in keys}
+    return result
 
 
 def _prepared(args: argparse.Namespace) -> PreparedSystem:

@@ -314,10 +314,27 @@ def stress_table(data: dict, gaps: tuple[tuple[str, str, str, str], ...]) -> str
             )
     header = ["row", "gap", "first window (K)", "last window (K)", "trend (K per 100 ps)", "spread (K)"]
     windows = next(iter(data["stress"].values()))["windows"]
-    return markdown_table(header, rows) + (
-        f"\n\n{len(windows)} consecutive windows of each run, each partition's temperature 2⟨K⟩/(N k_B) over "
-        "the window's frames; trend: least-squares slope of the gap against time ± its standard error; "
-        "spread: standard deviation of the gap over the windows."
+    energy = []
+    for name, run in data["stress"].items():
+        summary = run.get("summary")
+        if not summary:
+            continue
+        dof = summary["degrees_of_freedom"]
+        drift, error = summary["drift_per_dof"] * dof, summary["drift_per_dof_standard_error"] * dof
+        added = summary["rescaling"].get("added_energy_per_ns") if summary["rescaling"] else None
+        energy.append(
+            f"`{name.rpartition('@')[0]}`: H drifts {_signed(drift, error)} kJ/mol/ns"
+            + ("" if added is None else f", the scaling added {added:+.3g} kJ/mol/ns")
+        )
+    energy_text = ("\n\nOver each whole run: " + "; ".join(energy) + ".") if energy else ""
+    return (
+        markdown_table(header, rows)
+        + (
+            f"\n\n{len(windows)} consecutive windows of each run, each partition's temperature "
+            "2⟨K⟩/(N k_B) over the window's frames; trend: least-squares slope of the gap against "
+            "time ± its standard error; spread: standard deviation of the gap over the windows."
+        )
+        + energy_text
     )
 
 
