@@ -154,6 +154,15 @@ elif args[:3] == ["-m", "openmm_alphaprk", "bench"]:
         parser = long._parser()
         long._check_arguments(parser, parser.parse_args(rest))
         os.makedirs(value("--output"), exist_ok=True)
+    elif name == "physics":
+        from openmm_alphaprk.benchmarks import physics
+        from openmm_alphaprk.runs.integrator_names import parse_integrator
+        parsed = physics._parser().parse_args(rest)
+        [parse_integrator(n) for n in parsed.rows or []]
+        os.makedirs(parsed.output, exist_ok=True)
+        if parsed.mode == "report":
+            with open(os.path.join(parsed.output, "physics.json"), "w", encoding="utf-8") as handle:
+                handle.write("{}")
     else:
         from openmm_alphaprk.benchmarks import cost
         cost._parser().parse_args(rest)
@@ -205,6 +214,7 @@ def test_cuda_check_runs_its_commands_with_arguments_the_package_accepts(tmp_pat
         "WORK": str(tmp_path / "work"),
         "STAND_IN_LOG": str(log),
         "PYTHONPATH": str(ROOT),
+        "SURVEYS": "1",
     }
     (tmp_path / "work").mkdir()
     result = subprocess.run(
@@ -220,7 +230,10 @@ def test_cuda_check_runs_its_commands_with_arguments_the_package_accepts(tmp_pat
     calls = [json.loads(line) for line in log.read_text(encoding="utf-8").splitlines()]
     benches = [c["bench"] for c in calls if "bench" in c]
     # the long runs, mixed precision, one process; its report; cost on three boxes and dhfr
-    assert benches == ["long", "long", "cost", "cost", "cost", "cost"]
+    assert benches == ["long", "long", "cost", "cost", "cost", "cost", "physics", "physics"]
+    stress, physics_report = [c["args"] for c in calls if c.get("bench") == "physics"]
+    assert stress[0] == "stress" and stress[stress.index("--precision") + 1] == "mixed"
+    assert physics_report[:1] == ["report"] and "--parts" in physics_report
     long_run, report = [c["args"] for c in calls if c.get("bench") == "long"]
     assert "--report" in report and "--report" not in long_run
     assert long_run[long_run.index("--precision") + 1] == "mixed"
@@ -234,5 +247,5 @@ def test_cuda_check_runs_its_commands_with_arguments_the_package_accepts(tmp_pat
     assert "split-me+rescale" in long_run
     surveys = [c["survey"] for c in calls if "survey" in c]
     assert len(surveys) == 2 and all(s[s.index("--precision") + 1] == "mixed" for s in surveys)
-    assert {p.name for p in out.iterdir()} == {"log.txt", "long.tar.gz", "cost.tar.gz"}
+    assert {p.name for p in out.iterdir()} == {"log.txt", "long.tar.gz", "cost.tar.gz", "physics.json"}
     assert "done in" in (out / "log.txt").read_text(encoding="utf-8")

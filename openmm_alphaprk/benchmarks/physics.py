@@ -102,6 +102,7 @@ def _options(timestep_fs: float, time_ps: float, args: argparse.Namespace) -> Ru
         steps=round(time_ps / timestep_ps),
         timestep=timestep_ps,
         platform=args.platform,
+        precision=args.precision,
         energy_interval=frames * args.energy_every,
         trajectory_interval=frames * args.position_every,
         velocity_interval=frames * args.velocity_every,
@@ -312,6 +313,9 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--velocity-every", type=int, default=1, help="TRR frame every this many frames")
     parser.add_argument("--position-every", type=int, default=5, help="DCD frame every this many frames")
     parser.add_argument("--platform", default="CPU", help="OpenMM platform (default CPU)")
+    parser.add_argument(
+        "--precision", default=None, help="precision on CUDA/OpenCL/HIP (default: the platform's)"
+    )
     parser.add_argument("--threads", type=int, default=None, help="CPU threads per run")
     parser.add_argument("--output", default="alphaprk-physics", help="output folder")
     parser.add_argument("--windows", type=int, default=10, help="report: windows of each stress run")

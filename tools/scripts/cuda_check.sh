@@ -13,7 +13,12 @@
 #      the package's settings at 2 fs, and OpenMM's DHFR benchmark system as OpenMM builds it at
 #      4 fs (tools/scripts/dhfr_openmm_settings.py), for ns/day beside OpenMM's published figure;
 #   C. the explicit family's survey (tools/scripts/splitting_survey.py) on villin at 2 fs and on
-#      dhfr at 4 fs with hydrogens of 3 amu (its start "dhfr-h3" built beforehand like dhfr).
+#      dhfr at 4 fs with hydrogens of 3 amu (its start "dhfr-h3" built beforehand like dhfr); off by
+#      default since docs/splitting.md has its CPU tables (SURVEYS=1 runs it);
+#   D. the physics stress test on a larger box (docs/physics.md): `alphaprk bench physics stress` of
+#      RATTLE + rescaling beside RATTLE, PHYSICS_TIME ps at 4 fs on PHYSICS_SYSTEM in mixed precision
+#      (stopped after PHYSICS_LIMIT s, which keeps what it ran), then its report (partition
+#      temperatures in windows) as $OUT/physics.json.
 # Usage: OUT=folder tools/scripts/cuda_check.sh
 # The 21k- and 72k-atom boxes (tools/scripts/systems/*.toml) and dhfr are built and equilibrated
 # on first use, minutes on the CPU: build them before the GPU is lent and carry the cache, e.g.
@@ -26,7 +31,8 @@
 # checkpoints and trajectories; written when part A ends) and $OUT/cost.tar.gz (cost JSONs). Knobs (environment): PLATFORM (CUDA),
 # PRECISIONS of the tests ("mixed single"), LONG_PRECISIONS ("mixed"), LONG_SYSTEM (tip3p-3nm),
 # LONG_TIME (250), MULTI_TIME (100), LONG_LIMIT (300), TEST_LIMIT (280), COST_SYSTEMS, COST_STEPS
-# (200), COST_ROUNDS (3), DHFR (1), SURVEYS (1), TESTS (the test files; "none": no tests), GROUPS_OF_ROWS.
+# (200), COST_ROUNDS (3), DHFR (1), SURVEYS (0), TESTS (the test files; "none": no tests), GROUPS_OF_ROWS,
+# PHYSICS (1), PHYSICS_SYSTEM (tip3p-3nm), PHYSICS_TIME (200), PHYSICS_LIMIT (150).
 set -uo pipefail
 OUT=${OUT:-cuda-check}
 mkdir -p "$OUT"
@@ -45,7 +51,11 @@ COST_SYSTEMS=${COST_SYSTEMS:-tip3p-3nm tools/scripts/systems/tip3p-6nm.toml tool
 COST_STEPS=${COST_STEPS:-200}
 COST_ROUNDS=${COST_ROUNDS:-3}
 DHFR=${DHFR:-1}
-SURVEYS=${SURVEYS:-1}
+SURVEYS=${SURVEYS:-0}
+PHYSICS=${PHYSICS:-1}
+PHYSICS_SYSTEM=${PHYSICS_SYSTEM:-tip3p-3nm}
+PHYSICS_TIME=${PHYSICS_TIME:-200}
+PHYSICS_LIMIT=${PHYSICS_LIMIT:-150}
 TESTS=${TESTS:-tests/test_common_platform.py tests/test_rescale.py}
 ALPHAPRK="python3 -m openmm_alphaprk"
 # the rows of bench long; one process per group (a comma joins rows that run one after the other)
@@ -120,6 +130,14 @@ if [ "$SURVEYS" = 1 ]; then
         --precision mixed --json "$WORK/survey_villin_2fs.json" 2>&1
     timeout 90 python3 tools/scripts/splitting_survey.py --system dhfr --timestep 4 --hydrogen-mass 3 \
         --platform "$PLATFORM" --precision mixed "${two[@]}" --json "$WORK/survey_dhfr_4fs_hmr3.json" 2>&1
+fi
+if [ "$PHYSICS" = 1 ]; then
+    echo "== D: the physics stress test, $PHYSICS_SYSTEM at 4 fs, mixed ($((SECONDS - start)) s)"
+    timeout -s TERM "$PHYSICS_LIMIT" $ALPHAPRK bench physics stress --system "$PHYSICS_SYSTEM" \
+        --rows rattle+rescale rattle --timesteps 4 --time "$PHYSICS_TIME" --velocity-every 10 \
+        --energy-every 5 --platform "$PLATFORM" --precision mixed --output "$WORK/physics" --no-progress 2>&1
+    timeout 120 $ALPHAPRK bench physics report --output "$WORK/physics" --parts stress --windows 5 \
+        --no-progress 2>&1 && cp "$WORK/physics/physics.json" "$OUT/physics.json"
 fi
 echo "done in $((SECONDS - start)) s"
 } 2>&1 | tee "$OUT/log.txt"
