@@ -116,6 +116,20 @@ def run_parameters(prepared: PreparedSystem, spec: IntegratorSpec, options: RunO
     } | {key: value for key, value in optional.items() if value is not None}
 
 
+def missing_run_files(path: Path, what_to_give: str) -> str | None:
+    """Say why ``path`` is not a run directory (no ``run.json``, or a file every run writes missing).
+
+    None if it is one. ``what_to_give`` ends the first message: what the caller takes instead
+    (e.g. "a folder written by `alphaprk run`").
+    """
+    if not (path / PARAMETERS_FILE).is_file():
+        return f"{path} is not a run directory (no {PARAMETERS_FILE}); give {what_to_give}."
+    for name in (ENERGIES_FILE, SYSTEM_FILE, TOPOLOGY_FILE):
+        if not (path / name).is_file():
+            return f"{path / name} is missing; the run did not start properly."
+    return None
+
+
 def check_run_directory(path: Path, parameters: dict[str, Any]) -> dict[str, Any] | None:
     """Return the stored parameters if ``path`` holds this run, None if it is new or empty.
 

@@ -112,14 +112,11 @@ def analyze_run(
 
 def _check_run_directory(run: Path) -> None:
     """Raise ``FileNotFoundError`` unless ``run`` holds ``run.json`` and the files every run writes."""
-    if not (run / rundir.PARAMETERS_FILE).is_file():
-        raise FileNotFoundError(
-            f"{run} is not a run directory (no {rundir.PARAMETERS_FILE}); give a folder written by "
-            "`alphaprk run` (or one integrator's folder of `alphaprk compare`)."
-        )
-    for name in (rundir.ENERGIES_FILE, rundir.SYSTEM_FILE, rundir.TOPOLOGY_FILE):
-        if not (run / name).is_file():
-            raise FileNotFoundError(f"{run / name} is missing; the run did not start properly.")
+    problem = rundir.missing_run_files(
+        run, "a folder written by `alphaprk run` (or one integrator's folder of `alphaprk compare`)"
+    )
+    if problem:
+        raise FileNotFoundError(problem)
 
 
 def _energy(result: dict, run: Path, system: mm.System, parameters: dict, plot: bool) -> dict:

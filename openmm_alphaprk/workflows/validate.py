@@ -223,14 +223,9 @@ def read_run(path: Path) -> RunRecord:
     InputError
         If ``path`` holds no ``run.json`` or lacks the files every run writes.
     """
-    if not (path / rundir.PARAMETERS_FILE).is_file():
-        raise InputError(
-            f"{path} is not a run directory (no {rundir.PARAMETERS_FILE}); give folders written by "
-            "`alphaprk run --velocity-interval N`."
-        )
-    for name in (rundir.ENERGIES_FILE, rundir.SYSTEM_FILE, rundir.TOPOLOGY_FILE):
-        if not (path / name).is_file():
-            raise InputError(f"{path / name} is missing; the run did not start properly.")
+    problem = rundir.missing_run_files(path, "folders written by `alphaprk run --velocity-interval N`")
+    if problem:
+        raise InputError(problem)
     parameters = json.loads((path / rundir.PARAMETERS_FILE).read_text(encoding="utf-8"))
     summary_file = path / rundir.SUMMARY_FILE
     summary = json.loads(summary_file.read_text(encoding="utf-8")) if summary_file.is_file() else {}
