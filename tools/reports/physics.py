@@ -92,6 +92,9 @@ def equipartition_table(data: dict) -> str:
         halves = _halves(setting["groups"])
         against = setting.get("against_reference", {}).get("system", {})
         z = [against.get(p, {}).get("in_errors") for p in ("translational", "rotational")]
+        step = label.partition(" h=")[2]
+        rattle = eq["settings"].get(f"rattle h={step}", {}).get("groups", {}).get("system")
+        versus_rattle = "-" if rattle is None or rattle is system else _pm(*_paired_gap(system, rattle), 2)
         rows.append(
             [
                 _label(label) + (" (reference)" if is_reference else ""),
@@ -100,6 +103,7 @@ def equipartition_table(data: dict) -> str:
                 _pm(system["rotational"]["temperature_K"], system["rotational"]["standard_error_K"], 4),
                 _pm(*gap, 2),
                 _pm(*halves, 2),
+                versus_rattle,
                 " / ".join("-" if v is None or is_reference else f"{v:+.1f}" for v in z),
             ]
         )
@@ -110,14 +114,29 @@ def equipartition_table(data: dict) -> str:
         "T rotation (K)",
         "T_tr − T_rot (K)",
         "T half 1 − half 2 (K)",
+        "gap − RATTLE's at the step (K, by start)",
         "translation / rotation vs reference (errors)",
     ]
     return markdown_table(header, rows) + (
         f"\n\nReference: {_label(reference)}. Errors: standard error of the mean over the independent "
-        "segments (one temperature per segment from physical_validation's partition of the kinetic energy); "
-        "distances from the reference in combined standard errors. Flagged by `alphaprk validate` "
-        f"({eq['flag_rule']}): " + (", ".join(_flag(f) for f in eq["flagged"]) or "none") + "."
+        "segments (one temperature per segment: 2⟨K⟩/(N k_B) of physical_validation's partition of "
+        "the kinetic energy over the segment's frames); distances from the reference in combined "
+        "standard errors; the gap against RATTLE's at the same step is paired by start (same E_ref). "
+        f"Flagged by `alphaprk validate` ({eq['flag_rule']}): "
+        + (", ".join(_flag(f) for f in eq["flagged"]) or "none")
+        + "."
     )
+
+
+def _paired_gap(system: dict, rattle: dict) -> tuple[float, float]:
+    """Mean and standard error over starts of (T_tr − T_rot) minus RATTLE's from the same start (K)."""
+    gaps = [
+        np.array(group["translational"]["segment_temperatures_K"])
+        - np.array(group["rotational"]["segment_temperatures_K"])
+        for group in (system, rattle)
+    ]
+    differences = gaps[0] - gaps[1]
+    return float(differences.mean()), float(differences.std(ddof=1) / math.sqrt(len(differences)))
 
 
 def _halves(groups: dict) -> tuple[float, float]:
@@ -130,7 +149,10 @@ def _halves(groups: dict) -> tuple[float, float]:
 def _flag(flag: dict | str) -> str:
     if isinstance(flag, str):
         return flag
-    return ", ".join(f"{k} {v}" for k, v in flag.items())
+    return (
+        f"{_label(flag['setting'])}: {flag['group']} {flag['partition']} "
+        f"(z = {flag['in_errors']:+.1f} against the setting's own whole-system temperature)"
+    )
 
 
 def goal_verdict(data: dict) -> str:
