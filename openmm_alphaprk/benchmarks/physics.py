@@ -45,6 +45,7 @@ import openmm.unit as unit
 
 from ..runs import RunOptions, run_nve
 from ..systems import PreparedSystem, load_definition, prepare_system
+from .long import one_evaluation
 
 #: Rows of the segments at each step (fs): the rescaled rows, RATTLE and the explicit splitting.
 SEGMENT_ROWS = ("rattle", "rattle+rescale", "rattle+rescale@10", "rattle4+rescale", "split-me")
@@ -124,9 +125,9 @@ def run_segments(prepared: PreparedSystem, args: argparse.Namespace, output: Pat
 
 
 def run_stress(prepared: PreparedSystem, args: argparse.Namespace, output: Path) -> None:
-    """Every stress row for ``--time`` ps (``--time-multi`` for the compositions) from the system's start."""
+    """Every stress row from the system's start: ``--time`` ps, ``--time-multi`` for multi-evaluation rows."""
     for name in args.rows:
-        time_ps = args.time_multi if "4" in name.split("+")[0] else args.time
+        time_ps = args.time if one_evaluation(name) else args.time_multi
         h = args.timesteps[0]
         run_nve(prepared, name, output / "stress" / setting_folder(name, h), _options(h, time_ps, args))
 
@@ -199,11 +200,11 @@ def paired_means(runs: list[Path], reference: str) -> dict:
     """
     import numpy as np
 
-    from ..runs import read_energies
+    from ..runs import read_energies, rundir
 
     means: dict[str, dict[str, tuple[float, float]]] = {}
     for run in runs:
-        rows = read_energies(run / "energies.csv")[1:]
+        rows = read_energies(run / rundir.ENERGIES_FILE)[1:]
         means.setdefault(run.parent.name, {})[run.name] = (float(rows[:, 5].mean()), float(rows[:, 2].mean()))
     base = means.get(reference, {})
     paired = {}

@@ -71,13 +71,23 @@ def _label(setting: str) -> str:
     return f"`{name}` at {step}"
 
 
+def _mean_error(values) -> tuple[float, float]:
+    """Mean over segments (or starts) and its standard error, std (ddof 1) / √n."""
+    values = np.asarray(values, dtype=float)
+    return float(values.mean()), float(values.std(ddof=1) / math.sqrt(len(values)))
+
+
+def _segment_gap(first: dict, second: dict) -> np.ndarray:
+    """T_first − T_second (K) segment by segment."""
+    return np.array(first["segment_temperatures_K"]) - np.array(second["segment_temperatures_K"])
+
+
 def _gap(group: dict, a: str, b: str) -> tuple[float, float]:
     """Mean and standard error over segments of T_a − T_b (K)."""
     first, second = group[a].get("segment_temperatures_K"), group[b].get("segment_temperatures_K")
     if not first or not second or len(first) < 2:
         return group[a]["temperature_K"] - group[b]["temperature_K"], math.nan
-    differences = np.array(first) - np.array(second)
-    return float(differences.mean()), float(differences.std(ddof=1) / math.sqrt(len(differences)))
+    return _mean_error(_segment_gap(group[a], group[b]))
 
 
 def equipartition_table(data: dict) -> str:
@@ -130,20 +140,12 @@ def equipartition_table(data: dict) -> str:
 
 def _paired_gap(system: dict, rattle: dict) -> tuple[float, float]:
     """Mean and standard error over starts of (T_tr − T_rot) minus RATTLE's from the same start (K)."""
-    gaps = [
-        np.array(group["translational"]["segment_temperatures_K"])
-        - np.array(group["rotational"]["segment_temperatures_K"])
-        for group in (system, rattle)
-    ]
-    differences = gaps[0] - gaps[1]
-    return float(differences.mean()), float(differences.std(ddof=1) / math.sqrt(len(differences)))
+    gaps = [_segment_gap(group["translational"], group["rotational"]) for group in (system, rattle)]
+    return _mean_error(gaps[0] - gaps[1])
 
 
 def _halves(groups: dict) -> tuple[float, float]:
-    a, b = groups["half 1"]["total"], groups["half 2"]["total"]
-    first, second = a.get("segment_temperatures_K"), b.get("segment_temperatures_K")
-    differences = np.array(first) - np.array(second)
-    return float(differences.mean()), float(differences.std(ddof=1) / math.sqrt(len(differences)))
+    return _mean_error(_segment_gap(groups["half 1"]["total"], groups["half 2"]["total"]))
 
 
 def _flag(flag: dict | str) -> str:
@@ -218,13 +220,10 @@ def rescaling_table(data: dict) -> str:
     for name, group in sorted(
         by_setting.items(), key=lambda item: (float(item[0].split("@")[-1][:-2]), item[0])
     ):
-        values = {key: np.array([g[key] for g in group]) for key in group[0] if key != "rescalings"}
         cells = []
         for key in ("mean_scale_change", "rms_scale_change", "added_energy_per_ns"):
-            v = values[key]
-            cells.append(
-                _pm(float(v.mean()), float(v.std(ddof=1) / math.sqrt(len(v))) if len(v) > 1 else None, 2)
-            )
+            values = [g[key] for g in group]
+            cells.append(_pm(*_mean_error(values), 2) if len(values) > 1 else _pm(values[0], None, 2))
         integrator, _, step = name.rpartition("@")
         rows.append([f"`{integrator}` at {step[:-2]} fs"] + cells)
     header = ["setting", "mean s − 1", "RMS s − 1", "energy added (kJ/mol/ns)"]
