@@ -420,11 +420,11 @@ def make_integrator(
     if not unit.is_quantity(timestep):
         timestep = timestep * unit.picoseconds
     if spec.kind == "rattle":
-        return RattleIntegrator(timestep, constraint_tolerance)
+        return RattleIntegrator(timestep, constraint_tolerance=constraint_tolerance)
     if spec.kind == "rescale":
         return RattleRescaleIntegrator(
             timestep,
-            constraint_tolerance,
+            constraint_tolerance=constraint_tolerance,
             order=spec.order,
             composition=spec.composition,
             rescale_interval=spec.rescale_interval,
