@@ -1,8 +1,8 @@
 """Bad input to ``alphaprk run``: a clear one-line refusal (exit status 2) or a message that names the cause.
 
-The last of issue 45's seventeen bad inputs: a coordinate file cut short, a file of another
-format under a reader's extension (every reader says what it expected), an absurd α, and a
-``--temperature`` that is negative or would be ignored. Files are made in ``tmp_path`` from
+Tested here: a coordinate file cut short, a file of another format under a reader's
+extension (every reader says what it expected), an absurd α, and a ``--temperature`` that
+is negative or would be ignored. Files are made in ``tmp_path`` from
 the shipped ones (tests/data/files).
 """
 

@@ -63,8 +63,17 @@ def test_every_data_file_has_its_provenance():
     assert not [p.name for p in (ROOT / "docs").glob("*.json")], "data belongs under docs/data/<page>/"
 
 
-#: A tracker reference: "issue 4", "issue-4", "Issue #4", "issues 3", "#4".
-TRACKER = re.compile(r"\b[Ii]ssues?[\s-]*#?\d+|(?<![\w&])#\d+\b")
+#: A tracker reference: "issue 4", "issue-4", "Issue #4", "issues 3", "#4". An upstream
+#: project's tracker named with the project ("MDAnalysis GitHub #3889") can be looked up.
+TRACKER = re.compile(r"\b[Ii]ssues?[\s-]*#?\d+|(?<![\w&])(?<!GitHub )#\d+\b")
+#: The code and its tests: what they do is said in their own words, not by a tracker's number
+#: (this module, which spells the pattern's examples, aside).
+SOURCES = sorted(
+    path
+    for folder in ("openmm_alphaprk", "tests", "tools")
+    for path in (ROOT / folder).rglob("*")
+    if path.suffix in {".py", ".sh", ".md"} and path.name != Path(__file__).name
+)
 #: How the work was organised rather than what the software does: the tracker's issues ("the issue
 #: that asked", "this issue", "the next issue"), sessions, teams, tickets, and a design document
 #: that is not in the repository (or its sections, "§4").
@@ -78,7 +87,7 @@ ORGANISATION = re.compile(
 def test_the_tracker_pattern_catches_every_spelling():
     for text in ("issue-4", "issue 4", "Issue #4", "issues 3 and 4", "see #4"):
         assert TRACKER.search(text), text
-    for text in ("it issues a warning", "C# 4", "&#8212;"):
+    for text in ("it issues a warning", "C# 4", "&#8212;", "MDAnalysis GitHub #3889"):
         assert not TRACKER.search(text), text
 
 
@@ -107,6 +116,14 @@ def test_no_page_refers_to_tracker_issues():
         text = page.read_text(encoding="utf-8")
         found = TRACKER.findall(text)
         assert not found, f"{page.relative_to(ROOT)} names tracker issues: {found}"
+
+
+def test_no_module_refers_to_tracker_issues():
+    """The package, its tests and tools say what they do and test, not which issue asked for it."""
+    assert any(path.parent.name == "tests" for path in SOURCES)
+    for path in SOURCES:
+        found = TRACKER.findall(path.read_text(encoding="utf-8"))
+        assert not found, f"{path.relative_to(ROOT)} names tracker issues: {found}"
 
 
 def test_the_organisation_pattern_catches_what_it_is_for():

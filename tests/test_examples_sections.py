@@ -1,7 +1,7 @@
 """Every public class and function has a numpydoc ``Examples`` section and typed parameters.
 
-Issue 45, item 2: the names a user imports (the ``__all__`` of the package and of its
-public subpackages, the public names of :mod:`openmm_alphaprk.workflows`, and the
+The names a user imports (the ``__all__`` of the package and of its public subpackages,
+the public names of :mod:`openmm_alphaprk.workflows`, and the
 functions the command line is built on) each show at least one ``>>>`` example, which
 the default suite runs as a doctest (``--doctest-modules`` in pyproject.toml), and give
 every parameter of the function or constructor a type (``name : type``) in ``Parameters``.

@@ -16,7 +16,7 @@ import numpy as np
 from openmm_alphaprk.reference import alpha_rattle4_step, alpha_rattle_step, energy_preserving_step
 from openmm_alphaprk.reference.step import Array, ConstrainedProblem
 
-#: α of the fixed-α study (issue 6).
+#: α of the fixed-α study.
 ALPHAS = (0.0, 1 / 6, 1 / 3, 1 / 2, 1.0)
 #: Bounds of the reference energy mode's exact (Brent) root search, design doc §4.
 REFERENCE_BOUNDS = (-1.0, 3.0)
