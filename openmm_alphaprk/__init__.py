@@ -1,25 +1,33 @@
 """α-RATTLE: energy- and invariant-preserving constrained integrators for OpenMM."""
 
-from .integrators import (
-    AlphaRattleEnergyIntegrator,
-    AlphaRattleIntegrator,
+from .errors import (
+    AlphaPRKError,
+    AlphaPRKWarning,
     EnergyHoldWarning,
     IncompatibleSystemError,
     MidpointConvergenceError,
-    RattleIntegrator,
-    RattleRescaleIntegrator,
-    SplittingRattleIntegrator,
+    NonSmoothForcesWarning,
+    StartBlowUpError,
+    StateChangingForceWarning,
     SystemSizeError,
     TimestepUnitWarning,
     UncheckedContextWarning,
     VelocityRescaleError,
+)
+from .integrators import (
+    AlphaRattleEnergyIntegrator,
+    AlphaRattleIntegrator,
+    RattleIntegrator,
+    RattleRescaleIntegrator,
+    SplittingRattleIntegrator,
     restore_integrator,
 )
-from .nve import StateChangingForceWarning, prepare_for_nve, state_changing_forces
-from .smooth_forces import NonSmoothForcesWarning, make_smooth, smoothness_problems
-from .start_blowup import StartBlowUpError
+from .nve import prepare_for_nve, state_changing_forces
+from .smooth_forces import make_smooth, smoothness_problems
 
 __all__ = [
+    "AlphaPRKError",
+    "AlphaPRKWarning",
     "AlphaRattleEnergyIntegrator",
     "AlphaRattleIntegrator",
     "EnergyHoldWarning",

@@ -14,13 +14,7 @@ import re
 
 import openmm.unit as unit
 
-
-class InputError(ValueError):
-    """A value the user gave is wrong; the message names it and how to fix it."""
-
-
-class InputTypeError(TypeError):
-    """A value the user gave has the wrong type or units; the message names it and how to fix it."""
+from .errors import InputError, InputTypeError  # defined there; importable from here too
 
 
 def to_float(value: object, unit_: unit.Unit, name: str, *, positive: bool = False) -> float:

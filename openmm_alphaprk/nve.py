@@ -15,6 +15,7 @@ import re
 import openmm as mm
 import openmm.unit as unit
 
+from .errors import LargeStepWarning, StateChangingForceWarning  # defined there; importable from here too
 from .platforms import massless_particles
 from .smooth_forces import (
     DEFAULT_SWITCH_WIDTH,
@@ -57,21 +58,6 @@ _NOT_APPLIED = (
     "VerletIntegrator, and the energy mode has not: it holds the energy of its reference state, which "
     "these forces change by design)"
 )
-
-
-class LargeStepWarning(UserWarning):
-    """The step is above what the System's lightest hydrogens allow (see :func:`step_size_problem`).
-
-    Examples
-    --------
-    >>> import warnings
-    >>> from openmm_alphaprk.nve import LargeStepWarning
-    >>> with warnings.catch_warnings(record=True) as caught:
-    ...     warnings.simplefilter("always")
-    ...     warnings.warn("a 4 fs step with 1 hydrogen(s) of 1.01 amu ...", LargeStepWarning)
-    >>> caught[0].category.__name__
-    'LargeStepWarning'
-    """
 
 
 def step_size_problem(system: mm.System, timestep_ps: float) -> str | None:
@@ -122,36 +108,6 @@ def step_size_problem(system: mm.System, timestep_ps: float) -> str | None:
             "rigid water and repartitioned hydrogen masses; use 4 fs or less"
         )
     return None
-
-
-class StateChangingForceWarning(UserWarning):
-    """An energy-mode integrator was given a System with a barostat, Andersen thermostat or CMMotionRemover.
-
-    The energy mode does not apply them (see :func:`state_changing_forces`); RATTLE and
-    fixed α do.
-
-    Examples
-    --------
-    Issued by the energy mode's ``check_context``:
-
-    >>> import openmm, warnings
-    >>> from openmm_alphaprk import AlphaRattleEnergyIntegrator
-    >>> system = openmm.System()
-    >>> for _ in range(2):
-    ...     _ = system.addParticle(39.9)
-    >>> _ = system.addForce(openmm.CMMotionRemover())
-    >>> integrator = AlphaRattleEnergyIntegrator(0.002)
-    >>> context = openmm.Context(system, integrator, openmm.Platform.getPlatformByName("Reference"))
-    >>> with warnings.catch_warnings(record=True) as caught:
-    ...     warnings.simplefilter("always")
-    ...     integrator.check_context(context)
-    >>> caught[0].category.__name__
-    'StateChangingForceWarning'
-    >>> print(caught[0].message)  # doctest: +ELLIPSIS
-    the energy-preserving mode runs NVE; 1 force(s) of this System change the state between steps and ...
-      - CMMotionRemover (force 0): the energy mode does not apply it (...). ...
-    See help(openmm_alphaprk.nve).
-    """
 
 
 def state_changing_forces(system: mm.System) -> list[str]:

@@ -24,6 +24,7 @@ import openmm as mm
 import openmm.unit as unit
 
 from ._units import InputError, to_dimensionless, to_float
+from .errors import NonSmoothForcesWarning  # defined there; importable from here too
 
 __all__ = [
     "DEFAULT_SWITCH_WIDTH",
@@ -43,39 +44,6 @@ SMOOTH_EWALD_TOLERANCE = 1e-5
 _EWALD_METHODS = (mm.NonbondedForce.Ewald, mm.NonbondedForce.PME, mm.NonbondedForce.LJPME)
 _FIX_NONBONDED = "call openmm_alphaprk.make_smooth(system) before creating the Context"
 _SMALL = 1e-12  # nm: switching distances this close count as equal (round-off of cutoff − width)
-
-
-class NonSmoothForcesWarning(UserWarning):
-    """An energy-mode integrator was given a System whose energy is not smooth (see smoothness_problems).
-
-    Examples
-    --------
-    Issued by the energy mode's ``check_context``, here for a PME System with OpenMM's
-    defaults:
-
-    >>> import openmm, warnings
-    >>> from openmm_alphaprk import AlphaRattleEnergyIntegrator
-    >>> system = openmm.System()
-    >>> system.setDefaultPeriodicBoxVectors(openmm.Vec3(3, 0, 0), openmm.Vec3(0, 3, 0), openmm.Vec3(0, 0, 3))
-    >>> nonbonded = openmm.NonbondedForce()  # OpenMM's defaults: no switch, Ewald tolerance 5e-4
-    >>> nonbonded.setNonbondedMethod(openmm.NonbondedForce.PME)
-    >>> for charge in (0.5, -0.5):
-    ...     _ = system.addParticle(39.9)
-    ...     _ = nonbonded.addParticle(charge, 0.34, 1.0)
-    >>> _ = system.addForce(nonbonded)
-    >>> integrator = AlphaRattleEnergyIntegrator(0.002)
-    >>> context = openmm.Context(system, integrator, openmm.Platform.getPlatformByName("Reference"))
-    >>> with warnings.catch_warnings(record=True) as caught:
-    ...     warnings.simplefilter("always")
-    ...     integrator.check_context(context)
-    >>> caught[0].category.__name__
-    'NonSmoothForcesWarning'
-    >>> print(caught[0].message)  # doctest: +ELLIPSIS
-    the energy-preserving mode needs smooth forces; 2 problem(s) found:
-      - NonbondedForce (force 0) cuts interactions off at 1 nm without a switching function: ...
-      - NonbondedForce (force 0) has an Ewald error tolerance of 0.0005 (OpenMM's default is 5e-4); ...
-    See help(openmm_alphaprk.smooth_forces).
-    """
 
 
 def label_force(index: int, force: mm.Force) -> str:

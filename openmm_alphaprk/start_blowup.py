@@ -18,6 +18,8 @@ import numpy as np
 import openmm as mm
 import openmm.unit as unit
 
+from .errors import StartBlowUpError  # defined there; importable from here too
+
 __all__ = ["START_STEPS", "USUAL_ALPHA", "StartBlowUpError", "take_steps"]
 
 #: Steps from an integrator's first during which a NaN is reported as a bad start.
@@ -26,31 +28,6 @@ START_STEPS = 100
 USUAL_ALPHA = 1.0
 
 _NON_FINITE = re.compile(r"\bnan\b|\binfinite\b|non-finite|\binf\b", re.IGNORECASE)
-
-
-class StartBlowUpError(mm.OpenMMException):
-    """The state went to NaN in an integrator's first :data:`START_STEPS` steps (a start it cannot take).
-
-    Examples
-    --------
-    A bond far too stiff for a 2 fs step (ωh ≈ 90):
-
-    >>> import openmm
-    >>> from openmm_alphaprk import RattleIntegrator
-    >>> system = openmm.System()
-    >>> for _ in range(2):
-    ...     _ = system.addParticle(1.0)
-    >>> bond = openmm.HarmonicBondForce()
-    >>> _ = bond.addBond(0, 1, 0.1, 1e9)
-    >>> _ = system.addForce(bond)
-    >>> integrator = RattleIntegrator(0.002)
-    >>> context = openmm.Context(system, integrator, openmm.Platform.getPlatformByName("Reference"))
-    >>> context.setPositions([[0, 0, 0], [0.11, 0, 0]])
-    >>> integrator.step(100)  # doctest: +ELLIPSIS
-    Traceback (most recent call last):
-    ...
-    openmm_alphaprk.start_blowup.StartBlowUpError: RattleIntegrator blew up in its first 100 steps, ...
-    """
 
 
 def take_steps(

@@ -24,6 +24,7 @@ import openmm_alphaprk
 
 PACKAGE = Path(openmm_alphaprk.__file__).parent
 LAYERS = {
+    "errors": 0,  # imports nothing of the package (test_errors_import_nothing_of_the_package)
     "_units": 0,
     "platforms": 0,
     "smooth_forces": 0,
@@ -222,6 +223,11 @@ def test_imports_point_down(path):
         assert LAYERS[target] <= LAYERS[room], f"{room} imports {target}, a room above it"
         if target == "benchmarks":
             assert room == "cli", f"{room} imports a benchmark module"
+
+
+def test_errors_import_nothing_of_the_package():
+    """The exceptions and warnings (``errors.py``) are the foundation every module may import."""
+    assert not set(_imported_rooms(PACKAGE / "errors.py"))
 
 
 def test_the_import_walker_resolves_relative_and_absolute_imports():

@@ -74,6 +74,7 @@ import openmm as mm
 import openmm.unit as unit
 
 from .._units import InputError
+from ..errors import EnergyHoldWarning  # defined there; importable from here too
 from ..smooth_forces import NonSmoothForcesWarning, outside_stacklevel
 from .alpha_rattle import DEFAULT_MAX_MIDPOINT_ITERATIONS, AlphaRattleIntegrator, _order_and_composition
 from .compositions import Composition
@@ -119,43 +120,6 @@ NON_SMOOTH_FALLBACK_FRACTION = 0.5
 #: where the energy is held; villin at 4 fs without repartitioned hydrogens: 25 % of 40 steps.
 ALPHA_ZERO_WARN_STEPS = 5
 ALPHA_ZERO_WARN_FRACTION = 0.2
-
-
-class EnergyHoldWarning(UserWarning):
-    """The energy mode could not hold some steps at E_ref and took them as its base's α = 0 steps.
-
-    Issued by :meth:`AlphaRattleEnergyIntegrator.step` when such steps are frequent: once
-    at least :data:`ALPHA_ZERO_WARN_STEPS` steps, and :data:`ALPHA_ZERO_WARN_FRACTION` of
-    all its steps, were α = 0 steps (``controller_totals()["steps_alpha_zero"]``), then each
-    time their count has doubled since the last warning. A few such steps are normal where
-    the energy is held (a few per cent on water at 2 fs) and are not warned about.
-
-    Examples
-    --------
-    A bond too stiff for α-RATTLE's midpoint iteration at the α the bounds allow (hω = 1.8
-    at 2 fs: RATTLE is stable, the iteration diverges for α above about 1.2) makes every
-    step an α = 0 step, RATTLE's:
-
-    >>> import openmm, warnings
-    >>> from openmm_alphaprk import AlphaRattleEnergyIntegrator
-    >>> system = openmm.System()
-    >>> for _ in range(2):
-    ...     _ = system.addParticle(1.0)
-    >>> bond = openmm.HarmonicBondForce()
-    >>> _ = bond.addBond(0, 1, 0.1, 405000.0)
-    >>> _ = system.addForce(bond)
-    >>> integrator = AlphaRattleEnergyIntegrator(0.002, alpha_bounds=(1.4, 1.5))
-    >>> context = openmm.Context(system, integrator, openmm.Platform.getPlatformByName("Reference"))
-    >>> context.setPositions([[0, 0, 0], [0.11, 0, 0]])
-    >>> context.setVelocities([[0, 0, 0], [1, 0, 0]])
-    >>> with warnings.catch_warnings(record=True) as caught:
-    ...     warnings.simplefilter("always")
-    ...     integrator.step(6)
-    >>> caught[0].category.__name__
-    'EnergyHoldWarning'
-    >>> print(caught[0].message)  # doctest: +ELLIPSIS
-    the energy-preserving mode could not hold 6 of its 6 steps at E_ref ...
-    """
 
 
 #: The series the controller predicts: D0, the one-step energy change at α = 0, and S = dH/dα.

@@ -77,6 +77,12 @@ import openmm.unit as unit
 
 from .. import platforms, start_blowup
 from .._units import InputError, to_dimensionless, to_float
+from ..errors import (  # defined there; importable from here too
+    IncompatibleSystemError,
+    MidpointConvergenceError,  # noqa: F401 (the old import path)
+    SystemSizeError,
+    TimestepUnitWarning,
+)
 from ..smooth_forces import outside_stacklevel
 from .compositions import COMPOSITIONS, Composition
 from .variables import (
@@ -137,58 +143,6 @@ def _stage_select(composition: Composition, first: int, what: str) -> str:
     return "alpha*(" + " + ".join(f"delta(phase - {k})" for k in on) + ")"
 
 
-class IncompatibleSystemError(InputError):
-    """Raised when an integrator cannot integrate a system: its step cannot be right for it.
-
-    The one error for "this integrator cannot run this system": particles without mass
-    (virtual sites) where the step takes a force at unconstrained positions, or on a
-    platform that does not place them inside a step.
-
-    Examples
-    --------
-    A virtual site between two constrained atoms, and α ≠ 0:
-
-    >>> import openmm
-    >>> from openmm_alphaprk import AlphaRattleIntegrator
-    >>> system = openmm.System()
-    >>> for mass in (39.9, 39.9, 0.0):
-    ...     _ = system.addParticle(mass)
-    >>> _ = system.addConstraint(0, 1, 0.3)
-    >>> system.setVirtualSite(2, openmm.TwoParticleAverageSite(0, 1, 0.5, 0.5))
-    >>> integrator = AlphaRattleIntegrator(0.002, 0.1)
-    >>> context = openmm.Context(system, integrator, openmm.Platform.getPlatformByName("Reference"))
-    >>> context.setPositions([[0, 0, 0], [0.3, 0, 0], [0.15, 0, 0]])
-    >>> integrator.check_context(context)  # doctest: +ELLIPSIS
-    Traceback (most recent call last):
-    ...
-    openmm_alphaprk.integrators.pieces.IncompatibleSystemError: AlphaRattleIntegrator with alpha=0.1 ...
-    """
-
-
-class SystemSizeError(RuntimeError):
-    """Raised when an integrator bound again runs a System with more particles than its first one.
-
-    Examples
-    --------
-    >>> import openmm
-    >>> from openmm_alphaprk import RattleIntegrator
-    >>> system = openmm.System()
-    >>> for _ in range(2):
-    ...     _ = system.addParticle(39.9)
-    >>> integrator = RattleIntegrator(0.002)
-    >>> context = openmm.Context(system, integrator, openmm.Platform.getPlatformByName("Reference"))
-    >>> context.setPositions([[0, 0, 0], [0.3, 0, 0]])
-    >>> integrator.step(1)
-    >>> _ = system.addParticle(39.9)  # a third atom, then the same integrator
-    >>> context.reinitialize()
-    >>> context.setPositions([[0, 0, 0], [0.3, 0, 0], [0.6, 0, 0]])
-    >>> integrator.step(1)  # doctest: +ELLIPSIS
-    Traceback (most recent call last):
-    ...
-    openmm_alphaprk.integrators.pieces.SystemSizeError: RattleIntegrator was first bound to a System of 2 ...
-    """
-
-
 @dataclass(frozen=True)
 class _CheckedContext:
     """What :meth:`_StepProgram.check_context` learnt from a Context, and a weak reference to it."""
@@ -202,32 +156,6 @@ class _CheckedContext:
 def _fingerprint(system: mm.System) -> tuple[int, int, int]:
     """Particles, forces and constraints: what changes when a System is edited before ``reinitialize()``."""
     return system.getNumParticles(), system.getNumForces(), system.getNumConstraints()
-
-
-class MidpointConvergenceError(RuntimeError):
-    """Raised when the implicit midpoint iteration of α-RATTLE fails to converge.
-
-    Examples
-    --------
-    A bond far too stiff for the step (|α| h²ω²/4 ≈ 10):
-
-    >>> import openmm
-    >>> from openmm_alphaprk import AlphaRattleIntegrator
-    >>> system = openmm.System()
-    >>> for _ in range(2):
-    ...     _ = system.addParticle(1.0)
-    >>> bond = openmm.HarmonicBondForce()
-    >>> _ = bond.addBond(0, 1, 0.1, 1e7)
-    >>> _ = system.addForce(bond)
-    >>> integrator = AlphaRattleIntegrator(0.002, 0.5)
-    >>> context = openmm.Context(system, integrator, openmm.Platform.getPlatformByName("Reference"))
-    >>> context.setPositions([[0, 0, 0], [0.11, 0, 0]])
-    >>> context.setVelocities([[1, 2, 0], [0, 0, 3]])
-    >>> integrator.step(1)  # doctest: +ELLIPSIS
-    Traceback (most recent call last):
-    ...
-    openmm_alphaprk.integrators.pieces.MidpointConvergenceError: α-RATTLE midpoint iteration did not ...
-    """
 
 
 _STEP_TYPES = {
@@ -867,23 +795,6 @@ class _StepProgram(mm.CustomIntegrator):
 
 #: A plain-number step (read in ps, as OpenMM does) above this many ps is probably meant in fs.
 LARGE_PLAIN_STEP_PS = 0.01
-
-
-class TimestepUnitWarning(UserWarning):
-    """A plain-number timestep above 10 fs: OpenMM reads plain numbers in picoseconds.
-
-    Examples
-    --------
-    >>> import warnings
-    >>> from openmm_alphaprk import RattleIntegrator
-    >>> with warnings.catch_warnings(record=True) as caught:
-    ...     warnings.simplefilter("always")
-    ...     integrator = RattleIntegrator(2)  # meant 2 fs, reads 2 ps
-    >>> caught[0].category.__name__
-    'TimestepUnitWarning'
-    >>> print(caught[0].message)  # doctest: +ELLIPSIS
-    timestep 2 is a plain number, which OpenMM reads in picoseconds: a step of 2000 fs, ...
-    """
 
 
 def _warn_if_plain_step_is_large(timestep: object, step_ps: float) -> None:

@@ -48,6 +48,7 @@ import openmm as mm
 import openmm.unit as unit
 
 from .._units import InputError
+from ..errors import UncheckedContextWarning, VelocityRescaleError  # defined there; importable from here too
 from ..nve import momentum_breaking_forces
 from .compositions import Composition, requested_composition
 from .pieces import DEFAULT_CONSTRAINT_TOLERANCE, _StepProgram
@@ -98,63 +99,6 @@ def rescale_interval_setting(rescale_interval: object) -> int:
             "give e.g. rescale_interval=10, or 1 (the default) to rescale every step."
         )
     return int(value)
-
-
-class VelocityRescaleError(RuntimeError):
-    """Raised when RATTLE + velocity rescaling finds no real factor that makes the total energy E_ref.
-
-    Examples
-    --------
-    A dimer at rest has no internal kinetic energy to scale:
-
-    >>> import openmm
-    >>> from openmm_alphaprk import RattleRescaleIntegrator
-    >>> system = openmm.System()
-    >>> for _ in range(2):
-    ...     _ = system.addParticle(39.9)
-    >>> _ = system.addConstraint(0, 1, 0.3)
-    >>> integrator = RattleRescaleIntegrator(0.002)
-    >>> context = openmm.Context(system, integrator, openmm.Platform.getPlatformByName("Reference"))
-    >>> context.setPositions([[0, 0, 0], [0.3, 0, 0]])
-    >>> integrator.step(1)  # doctest: +ELLIPSIS
-    Traceback (most recent call last):
-    ...
-    openmm_alphaprk.integrators.rescale.VelocityRescaleError: no real velocity scale s makes K + V ...
-    """
-
-
-class UncheckedContextWarning(UserWarning):
-    """RATTLE + rescaling stepped before ``check_context`` saw its Context: it assumes no periodic box.
-
-    Without the Context the integrator cannot tell whether the System has a periodic box.
-    It then keeps the rigid rotation out of the scaling and sums the rigid-body motion
-    (momentum, angular momentum, inertia tensor) every step: right without a box, and
-    slower than it need be with one, where a step sums the kinetic energy alone once
-    ``integrator.check_context(context)`` has seen the Context (1.1 against 11 host
-    synchronisations per step). Warned once per integrator.
-
-    Examples
-    --------
-    >>> import warnings
-    >>> import openmm
-    >>> from openmm_alphaprk import RattleRescaleIntegrator, UncheckedContextWarning
-    >>> from openmm_alphaprk.systems import prepare_system
-    >>> water = prepare_system("water-cluster")
-    >>> integrator = RattleRescaleIntegrator(0.002)
-    >>> context = openmm.Context(water.system, integrator, openmm.Platform.getPlatformByName("Reference"))
-    >>> context.setState(water.state)
-    >>> with warnings.catch_warnings(record=True) as caught:
-    ...     warnings.simplefilter("always")
-    ...     integrator.step(1)
-    >>> [warning.category.__name__ for warning in caught]
-    ['UncheckedContextWarning']
-    >>> integrator.check_context(context)  # the driver and benchmarks call it
-    >>> with warnings.catch_warnings(record=True) as caught:
-    ...     warnings.simplefilter("always")
-    ...     integrator.step(1)
-    >>> caught
-    []
-    """
 
 
 class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):

@@ -29,6 +29,7 @@ import openmm.app as app
 import openmm.unit as unit
 from tqdm import tqdm
 
+from ..errors import AlphaPRKError
 from ..integrators import check_context
 from ..nve import LargeStepWarning, step_size_problem
 from ..systems import PreparedSystem, prepare_system
@@ -49,7 +50,7 @@ from .options import RunOptions
 from .summary import RunSummary, read_summary, summarize
 
 
-class RunFailedError(RuntimeError):
+class RunFailedError(AlphaPRKError, RuntimeError):
     """Raised when a run stops on a NaN or a failed step; the output up to then is kept.
 
     Examples

@@ -33,6 +33,7 @@ import openmm.app as app
 import openmm.unit as unit
 
 from .._units import InputError, to_float
+from ..errors import AlphaPRKError
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -81,7 +82,7 @@ _EQUILIBRATION_KEYS: dict[str, type | tuple[type, ...]] = {
 }
 
 
-class UnknownSystemError(KeyError):
+class UnknownSystemError(AlphaPRKError, KeyError):
     """Raised for a system name with no definition file.
 
     Examples

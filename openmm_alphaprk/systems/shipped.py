@@ -39,6 +39,7 @@ from pathlib import Path
 import openmm as mm
 import openmm.app as app
 
+from ..errors import AlphaPRKWarning
 from .build import BUILDER_VERSION, build_model, create_system
 from .definitions import SystemDefinition, definition_key
 
@@ -46,7 +47,7 @@ from .definitions import SystemDefinition, definition_key
 STATES_DIR = Path(__file__).parent / "states"
 
 
-class ShippedStateWarning(UserWarning):
+class ShippedStateWarning(AlphaPRKWarning):
     """A shipped start state matches a definition but not the topology OpenMM builds here.
 
     Examples
