@@ -22,7 +22,7 @@ Modules:
   RATTLE steps) followed by velocity rescaling to E_ref, and its program;
 - :mod:`~.reference_energy`: E_ref, when the integrators that hold it take it, and its API;
 - :mod:`~.compositions`: the named compositions, their coefficients and sources;
-- :mod:`~.splitting`: :class:`SplittingRattleIntegrator`, the explicit α-family (α-RATTLE's
+- :mod:`~.splitting_rattle`: :class:`SplittingRattleIntegrator`, the explicit α-family (α-RATTLE's
   quadrature as a kick-drift splitting), and its program; :mod:`~.splittings`: the named
   splittings, their coefficients and sources;
 - :mod:`~.alpha_rattle`: :class:`AlphaRattleIntegrator` (fixed α, one step or a
@@ -50,7 +50,7 @@ from .restore import (
     force_evaluations_per_step,
     restore_integrator,
 )
-from .splitting import SplittingRattleIntegrator
+from .splitting_rattle import SplittingRattleIntegrator
 
 __all__ = [
     "PACKAGE_INTEGRATORS",

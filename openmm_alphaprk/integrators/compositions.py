@@ -15,17 +15,18 @@ step programs (:mod:`~.pieces`, :mod:`~.alpha_rattle`) and the NumPy reference
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field, replace
+from typing import ClassVar
 
 from .._units import InputError
+from .stage_sets import Library, StageSet, SubStep
 
 _CBRT2 = 2.0 ** (1.0 / 3.0)
 _SUZUKI_P = 1.0 / (4.0 - 4.0 ** (1.0 / 3.0))
 
 
 @dataclass(frozen=True)
-class Composition:
+class Composition(StageSet):
     """A symmetric composition of a symmetric second-order step.
 
     Attributes
@@ -49,17 +50,13 @@ class Composition:
     order: int
     source: str
     alpha_stages: tuple[int, ...] = field(default=())
+    what: ClassVar[str] = "composition"
+    record_prefix: ClassVar[str] = "stage_coefficient_"
 
     def __post_init__(self) -> None:
-        c = self.coefficients
-        if len(c) < 1 or not all(math.isfinite(x) for x in c):
-            raise InputError(f"composition {self.name!r}: coefficients must be finite numbers, got {c!r}.")
-        if abs(sum(c) - 1.0) > 1e-12:
-            raise InputError(
-                f"composition {self.name!r}: coefficients must sum to 1, they sum to {sum(c)!r}."
-            )
-        if any(abs(a - b) > 1e-12 for a, b in zip(c, reversed(c))):
-            raise InputError(f"composition {self.name!r}: coefficients must be symmetric (c_i = c_(s+1-i)).")
+        c = tuple(map(float, self.coefficients))
+        object.__setattr__(self, "coefficients", c)
+        self._check_palindrome("coefficients", c)
         stages = self.alpha_stages or ((len(c) + 1) // 2,)
         if any(not 1 <= k <= len(c) for k in stages) or len(set(stages)) != len(stages):
             raise InputError(
@@ -68,10 +65,9 @@ class Composition:
             )
         object.__setattr__(self, "alpha_stages", tuple(sorted(stages)))
 
-    @property
-    def stages(self) -> int:
-        """The number of stages s: force evaluations per step at α = 0."""
-        return len(self.coefficients)
+    def substeps(self) -> tuple[SubStep, ...]:
+        """Return the stages as RATTLE sub-steps (c_i, ½, ½) (the α stages too: their α = 0 form)."""
+        return tuple((c, 0.5, 0.5) for c in self.coefficients)
 
     @property
     def first_alpha_stage(self) -> int:
@@ -94,6 +90,27 @@ class Composition:
         else:
             chosen = tuple(int(k) for k in stages)
         return replace(self, alpha_stages=chosen)
+
+    def recorded(self) -> dict[str, float]:
+        """The coefficients and α's stages as globals ``stage_coefficient_<i>``, ``alpha_on_stage_<i>``."""
+        values = {}
+        for i, c in enumerate(self.coefficients, start=1):
+            values[f"stage_coefficient_{i}"] = c
+            values[f"alpha_on_stage_{i}"] = float(i in self.alpha_stages)
+        return values
+
+    @classmethod
+    def from_record(cls, values: dict[str, float], library: Library) -> Composition | None:
+        """Return the composition a program's globals record (:meth:`recorded`); None without one."""
+        stages = sum(name.startswith(cls.record_prefix) for name in values)
+        if not stages:
+            return None
+        coefficients = tuple(values[f"stage_coefficient_{i}"] for i in range(1, stages + 1))
+        on = tuple(i for i in range(1, stages + 1) if values[f"alpha_on_stage_{i}"])
+        known = library.find(lambda c: c.coefficients == coefficients)
+        if known is not None:
+            return known.with_alpha_on(on)
+        return cls("restored", coefficients, int(values.get("order", 0)), "read back from the step program", on)
 
     def listing(self) -> str:
         """One line: the name, the order and the coefficients, α's stages marked."""
@@ -171,21 +188,14 @@ MCLACHLAN9 = Composition(
 )
 
 #: The named compositions, by name.
-COMPOSITIONS: dict[str, Composition] = {
-    c.name: c for c in (TRIPLE_JUMP, SUZUKI5, MCLACHLAN5, YOSHIDA7, KAHAN_LI_S9ODR6A, MCLACHLAN9)
-}
+COMPOSITIONS: Library[Composition] = Library(
+    "composition", (TRIPLE_JUMP, SUZUKI5, MCLACHLAN5, YOSHIDA7, KAHAN_LI_S9ODR6A, MCLACHLAN9)
+)
 
 
 def composition(name: str | Composition) -> Composition:
     """Return the named composition (a :class:`Composition` is returned as it is)."""
-    if isinstance(name, Composition):
-        return name
-    try:
-        return COMPOSITIONS[name]
-    except (KeyError, TypeError):
-        raise InputError(
-            f"unknown composition {name!r}; the named ones are {', '.join(COMPOSITIONS)}."
-        ) from None
+    return COMPOSITIONS.lookup(name)
 
 
 #: The composition ``order=4`` and ``order=6`` give.

@@ -85,6 +85,7 @@ from ..errors import (  # defined there; importable from here too
 )
 from ..smooth_forces import outside_stacklevel
 from .compositions import COMPOSITIONS, Composition
+from .stage_sets import Library, StageSet, SubStep
 from .variables import (
     ALPHA,
     CHECK_SYSTEM,
@@ -332,36 +333,28 @@ class _StepProgram(mm.CustomIntegrator):
                 self.addGlobalVariable("next_stage_midpoint", 0)
             for name in ("xstep", "vstep"):
                 self.addPerDofVariable(name, 0)
-            self._add_composition_record(composition)
+            self._add_record(composition)
 
-    def _add_composition_record(self, composition: Composition) -> None:
-        """Keep a composition's coefficients and α's stages as globals (read by :attr:`composition`)."""
-        for i, c in enumerate(composition.coefficients, start=1):
-            self.addGlobalVariable(f"stage_coefficient_{i}", c)
-            self.addGlobalVariable(f"alpha_on_stage_{i}", float(i in composition.alpha_stages))
+    def _add_record(self, stages: StageSet) -> None:
+        """Keep a composition's or splitting's coefficients as globals (read back by :meth:`_recorded`)."""
+        for name, value in stages.recorded().items():
+            self.addGlobalVariable(name, value)
+
+    def _recorded(self, kind: type[StageSet], library: Library) -> StageSet | None:
+        """Read back the ``kind`` of set the program's globals record; None without one."""
+        names = (self.getGlobalVariableName(i) for i in range(self.getNumGlobalVariables()))
+        return kind.from_record({name: self.getGlobalVariableByName(name) for name in names}, library)
 
     @property
     def composition(self) -> Composition | None:
         """The composition of steps the program is made of, α's stages marked (None: one step).
 
-        Read back from the program's globals (:meth:`_add_composition_record`) for an
-        integrator restored from XML or taken from a Context.
+        Read back from the program's globals (:meth:`_add_record`) for an integrator
+        restored from XML or taken from a Context.
         """
         if "_composition" in vars(self):
             return self._composition
-        names = [self.getGlobalVariableName(i) for i in range(self.getNumGlobalVariables())]
-        stages = sum(name.startswith("stage_coefficient_") for name in names)
-        if not stages:
-            return None
-        coefficients = tuple(
-            self.getGlobalVariableByName(f"stage_coefficient_{i}") for i in range(1, stages + 1)
-        )
-        on = tuple(i for i in range(1, stages + 1) if self.getGlobalVariableByName(f"alpha_on_stage_{i}"))
-        known = [c for c in COMPOSITIONS.values() if c.coefficients == coefficients]
-        if known:
-            return known[0].with_alpha_on(on)
-        order = int(self.getGlobalVariableByName("order")) if "order" in names else 0
-        return Composition("restored", coefficients, order, "read back from the step program", on)
+        return self._recorded(Composition, COMPOSITIONS)
 
     # ------------------------------------------------------ α-RATTLE's midpoint
     def _add_midpoint_setup(self, need_midpoint: str) -> None:
@@ -425,23 +418,29 @@ class _StepProgram(mm.CustomIntegrator):
         self._add_end_step()
 
     # ------------------------------------------------ a composition's sub-steps
-    def _add_leading_substeps(self, composition: Composition, last: int | None = None) -> None:
-        """Take the RATTLE stages before the first stage with α (or up to ``last``), from the step's start.
+    def _add_substeps(self, substeps: tuple[SubStep, ...], first_force: str = "f") -> None:
+        """Take the constrained sub-steps (c, p, q) from x0, v0, F(x0) in ``first_force``: the one emitter.
 
-        F(x0) is in ``fstart``.
-
-        Straight-line code, taken once per step: each stage's position solve is
+        Every explicit base step is emitted here (:mod:`~.stage_sets`): RATTLE (one
+        sub-step (1, ½, ½), written with ``dt``), a composition's stages at α = 0, a
+        splitting's drifts with their kicks. Straight-line code, one position solve and one
+        velocity update per sub-step (one force evaluation each, counted): each solve is
         followed by its constraint step, so the force read after it sees the solved
-        positions on every platform (rule 1), and each projects along the positions of
-        the stage's start, left by the previous constraint step (rule 2).
+        positions on every platform (rule 1), and projects along the positions of the
+        previous constraint step, the sub-step's start (rule 2). Leaves x, v at the end;
+        x0, v0 at the last sub-step's start.
         """
-        for i in range(1, (composition.first_alpha_stage - 1 if last is None else last) + 1):
-            h = _substep_h(composition, i)
+        for i, (c, before, after) in enumerate(substeps, start=1):
+            h = "dt" if c == 1.0 else f"({c!r}*dt)"
             if i > 1:
                 self.addComputePerDof("x0", "x")
                 self.addComputePerDof("v0", "v")
-            self._add_position_solve("0.5*fstart" if i == 1 else "0.5*f", h)
-            self._add_velocity_update("0.5*f", h)
+            self._add_position_solve(f"{before!r}*{first_force if i == 1 else 'f'}", h)
+            self._add_velocity_update(f"{after!r}*f", h)
+
+    def _add_leading_substeps(self, composition: Composition) -> None:
+        """Take the RATTLE stages before the first stage with α, from the step's start (F(x0) in ``fstart``)."""
+        self._add_substeps(composition.substeps()[: composition.first_alpha_stage - 1], first_force="fstart")
 
     def _add_alpha_substeps_start(self, composition: Composition, need_midpoint: str, **copies: str) -> None:
         """Start the first stage with α here; the loop then takes it and every stage after it."""

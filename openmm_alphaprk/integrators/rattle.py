@@ -5,6 +5,7 @@ from __future__ import annotations
 import openmm.unit as unit
 
 from .pieces import DEFAULT_CONSTRAINT_TOLERANCE, _StepProgram
+from .splittings import RATTLE
 
 
 class RattleIntegrator(_StepProgram):
@@ -70,6 +71,5 @@ class RattleIntegrator(_StepProgram):
     def _build_program(self) -> None:
         """One RATTLE step: the position solve with F(x0), the velocity update with F(x1)."""
         self._add_save_step_start()
-        self._add_position_solve("0.5*f")
-        self._add_velocity_update("0.5*f")
+        self._add_substeps(RATTLE.substeps())
         self._add_end_step()

@@ -53,9 +53,9 @@ from ..nve import momentum_breaking_forces
 from .compositions import Composition, requested_composition
 from .pieces import DEFAULT_CONSTRAINT_TOLERANCE, _StepProgram
 from .reference_energy import _ReferenceEnergy, energy_tolerance_setting
-from .splitting import add_splitting_record, add_splitting_stages, recorded_splitting
-from .splittings import Splitting
+from .splittings import RATTLE, SPLITTINGS, Splitting
 from .splittings import splitting as named_splitting
+from .stage_sets import StageSet
 from .variables import RATTLE_RESIDUAL, RESCALE_HALTED, STEPS_TAKEN, VELOCITY_SCALE
 
 _AXES = {"x": "vector(1,0,0)", "y": "vector(0,1,0)", "z": "vector(0,0,1)"}
@@ -234,18 +234,18 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         if splitting is not None and self._composition is not None:
             raise InputError("give a composition (order, composition) or a splitting, not both.")
         self._splitting = named_splitting(splitting) if splitting is not None else None
+        #: the base step the rescaling follows: RATTLE, a composition of RATTLE steps or a splitting
+        self._base: StageSet = self._composition or self._splitting or RATTLE
         #: the sub-steps of a step, where there are several (a composition or a splitting)
-        self._stages = self._composition or self._splitting
+        self._stages = None if self._base is RATTLE else self._base
         self._rescale_interval = rescale_interval_setting(rescale_interval)
         super().__init__(timestep, constraint_tolerance)
         self._add_reference_energy_variables(tolerance)
         self._add_rescale_variables()
         if self._rescale_interval > 1:
             self._add_interval_variables(self._rescale_interval)
-        if self._composition is not None:
-            self._add_composition_record(self._composition)
-        if self._splitting is not None:
-            add_splitting_record(self, self._splitting)
+        if self._stages is not None:
+            self._add_record(self._stages)
         self._add_step(self._build_program, update_context_state=False, halted=RESCALE_HALTED)
 
     def _add_rescale_variables(self) -> None:
@@ -284,46 +284,40 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
 
     # ---------------------------------------------------------------- the program
     def _build_program(self) -> None:
-        """Add the RATTLE step, then the rigid-body motion, the scale factor and the scaled velocities.
+        """Add the base step, then the rigid-body motion, the scale factor and the scaled velocities.
 
         F(x0) is copied before the reference check, whose energy read would otherwise be
         the step's first evaluation (see :meth:`~.reference_energy._ReferenceEnergy._add_reference_check`:
-        measured on CUDA, the forces read after it were wrong; the positions after 5 steps
-        differed from Reference's by 3.7e-3 nm).
-        """
-        if self._rescale_interval > 1:
-            self._build_interval_program()
-            return
-        self._add_step_start(on_moved=self._add_moved_start)
-        self._add_rattle_step()
-        self._add_rescaling()
-        self._add_end_step()
+        on CUDA the forces read after it were wrong).
 
-    def _build_interval_program(self) -> None:
-        """With ``rescale_interval`` N > 1: the RATTLE step in two blocks, plain (no energy) and rescaled.
-
-        OpenMM decides for each read of ``f``, once, whether the force evaluation it causes
-        computes the energy too: it does if any path through the program (taking or
+        With ``rescale_interval`` N > 1 the base step is in two blocks, plain (no energy) and
+        rescaled. OpenMM decides for each read of ``f``, once, whether the force evaluation it
+        causes computes the energy too: it does if any path through the program (taking or
         skipping every ``if`` block, regardless of its condition) reads ``energy`` before the
         positions change. A step between rescalings therefore reads its force in a block of
-        its own (the plain RATTLE step, :meth:`_add_plain_step`) from which every path to an
-        energy read crosses a position assignment: the rescaling step's own solve, or the
-        ``x = x`` before the reference check's energy read (:meth:`_add_moved_start_invalidating`).
-        The rescaling step's force read, followed by its energy read, computes both in one
+        its own (the plain step, :meth:`_add_plain_step`) from which every path to an energy
+        read crosses a position assignment: the rescaling step's own solve, or the ``x = x``
+        before the reference check's energy read (:meth:`_add_moved_start_invalidating`). The
+        rescaling step's force read, followed by its energy read, computes both in one
         evaluation, as for N = 1.
         """
-        self._add_step_start(
-            on_moved=self._add_moved_start_invalidating,
-            on_retake=_INTERVAL_RESTART,
-            carried_tolerance=_EXCURSION_TOLERANCE,
-        )
-        self.addComputeGlobal("rescale_count", "rescale_count + 1")
-        self._add_plain_step()
-        self.beginIfBlock("rescale_count > rescale_interval - 0.5")
-        self._add_rattle_step()
+        interval = self._rescale_interval > 1
+        if interval:
+            self._add_step_start(
+                on_moved=self._add_moved_start_invalidating,
+                on_retake=_INTERVAL_RESTART,
+                carried_tolerance=_EXCURSION_TOLERANCE,
+            )
+            self.addComputeGlobal("rescale_count", "rescale_count + 1")
+            self._add_plain_step()
+            self.beginIfBlock("rescale_count > rescale_interval - 0.5")
+        else:
+            self._add_step_start(on_moved=self._add_moved_start)
+        self._add_base_step()
         self._add_rescaling()
-        self._add_interval_restart()
-        self.endBlock()
+        if interval:
+            self._add_interval_restart()
+            self.endBlock()
         self._add_end_step()
 
     def _add_step_start(self, on_moved: Callable[[], None], **check: object) -> None:
@@ -339,15 +333,9 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
             moved = self._add_rigid_body_measurement if on_moved == self._add_moved_start else on_moved
             self._add_reference_check(on_moved=moved, **check)
 
-    def _add_rattle_step(self) -> None:
-        """Add the RATTLE step from x0, v0 (F(x0) in ``fstart``), or the composition's stages."""
-        if self._splitting is not None:
-            add_splitting_stages(self, self._splitting, first_force="fstart")
-        elif self._composition is None:
-            self._add_position_solve("0.5*fstart")
-            self._add_velocity_update("0.5*f")
-        else:
-            self._add_leading_substeps(self._composition, last=self._composition.stages)
+    def _add_base_step(self) -> None:
+        """Add the base step's sub-steps from x0, v0 (F(x0) in ``fstart``): RATTLE, a composition or a splitting."""
+        self._add_substeps(self._base.substeps(), first_force="fstart")
 
     def _add_plain_step(self) -> None:
         """Between rescalings (``rescale_count`` < N): the RATTLE step, then the state it ends in recorded.
@@ -358,7 +346,7 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         widens its energy test by the excursion for that (:data:`_EXCURSION_TOLERANCE`).
         """
         self.beginIfBlock("rescale_count < rescale_interval - 0.5")
-        self._add_rattle_step()
+        self._add_base_step()
         into = ("xend", "vend") if self._stages is not None else ("x0", "v0")
         self.addComputePerDof(into[0], "x")
         self.addComputePerDof(into[1], "v")
@@ -625,7 +613,7 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         """The splitting the rescaling follows (None: RATTLE or a composition); read back when restored."""
         if "_splitting" in vars(self):
             return self._splitting
-        return recorded_splitting(self)
+        return self._recorded(Splitting, SPLITTINGS)
 
     @property
     def rescale_interval(self) -> int:

@@ -10,7 +10,7 @@ from .energy_mode import AlphaRattleEnergyIntegrator
 from .pieces import _StepProgram
 from .rattle import RattleIntegrator
 from .rescale import RattleRescaleIntegrator
-from .splitting import SplittingRattleIntegrator
+from .splitting_rattle import SplittingRattleIntegrator
 from .variables import KIND_VARIABLE, REFERENCE_ENERGY
 
 #: This package's integrator classes (the energy mode's class is an AlphaRattleIntegrator):
@@ -92,7 +92,7 @@ def restore_integrator(
     RattleIntegrator or RattleRescaleIntegrator or AlphaRattleIntegrator
         The same object, now an instance of :class:`~.rattle.RattleIntegrator`,
         :class:`~.rescale.RattleRescaleIntegrator`, :class:`~.alpha_rattle.AlphaRattleIntegrator`,
-        :class:`~.splitting.SplittingRattleIntegrator`
+        :class:`~.splitting_rattle.SplittingRattleIntegrator`
         or (a program of the energy mode) :class:`~.energy_mode.AlphaRattleEnergyIntegrator`.
 
     Raises

@@ -17,7 +17,7 @@ of h/2. The named sets (:data:`SPLITTINGS`): the two-stage minimum-error splitti
 (McLachlan 1995), Blanes, Casas & Sanz-Serna's two- and three-stage splittings (2014), the
 three-stage minimum-error splitting (Predescu et al. 2012), and RATTLE at h/2 and h/3 as
 two- and three-stage splittings. The OpenMM step programs
-(:mod:`~.splitting`, :mod:`~.rescale`) and the NumPy reference
+(:mod:`~.splitting_rattle`, :mod:`~.rescale`) and the NumPy reference
 (:mod:`openmm_alphaprk.reference.splitting`) both take their sub-steps from
 :meth:`Splitting.substeps`.
 """
@@ -26,11 +26,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-
-import numpy as np
-from numpy.polynomial import Polynomial
+from typing import ClassVar
 
 from .._units import InputError
+from .stage_sets import Library, StageSet, SubStep
 
 #: McLachlan's minimum-error two-stage kick, b = ½ − α (SIAM J. Sci. Comput. 16 (1995) 151).
 MCLACHLAN_B = 0.1931833275037836
@@ -39,7 +38,7 @@ BCSS2_B = 0.211781
 
 
 @dataclass(frozen=True)
-class Splitting:
+class Splitting(StageSet):
     """A symmetric kick-drift splitting of velocity-Verlet type, with constraints.
 
     Attributes
@@ -62,6 +61,8 @@ class Splitting:
     drifts: tuple[float, ...]
     order: int
     source: str
+    what: ClassVar[str] = "splitting"
+    record_prefix: ClassVar[str] = "splitting_drift_"
 
     def __post_init__(self) -> None:
         kicks, drifts = tuple(map(float, self.kicks)), tuple(map(float, self.drifts))
@@ -71,15 +72,10 @@ class Splitting:
             raise InputError(
                 f"splitting {self.name!r}: give s drifts and s + 1 kicks, got {len(drifts)} and {len(kicks)}."
             )
-        if not all(math.isfinite(x) for x in kicks + drifts) or any(a == 0.0 for a in drifts):
-            raise InputError(f"splitting {self.name!r}: drifts must be non-zero and kicks finite numbers.")
-        for what, values in (("kicks", kicks), ("drifts", drifts)):
-            if abs(sum(values) - 1.0) > 1e-12:
-                raise InputError(
-                    f"splitting {self.name!r}: {what} must sum to 1, they sum to {sum(values)!r}."
-                )
-            if any(abs(x - y) > 1e-12 for x, y in zip(values, reversed(values))):
-                raise InputError(f"splitting {self.name!r}: {what} must be symmetric (a palindrome).")
+        if any(a == 0.0 for a in drifts):
+            raise InputError(f"splitting {self.name!r}: drifts must be non-zero.")
+        self._check_palindrome("kicks", kicks)
+        self._check_palindrome("drifts", drifts)
 
     @property
     def stages(self) -> int:
@@ -93,7 +89,7 @@ class Splitting:
             return 0.5 - self.kicks[0]
         return None
 
-    def substeps(self) -> tuple[tuple[float, float, float], ...]:
+    def substeps(self) -> tuple[SubStep, ...]:
         """Return the splitting as s constrained sub-steps (c_i, p_i, q_i), the form the programs take.
 
         Sub-step i is a step of c_i h = a_i h from (x0, v0), F0 = F(x0)::
@@ -116,59 +112,26 @@ class Splitting:
             result.append((c, before / c, after / c))
         return tuple(result)
 
-    def stability_limit(self) -> float:
-        """Return the linear stability limit ωh_max of one step on the harmonic oscillator ẍ = −ω²x.
+    def recorded(self) -> dict[str, float]:
+        """The kicks and drifts as globals ``splitting_kick_<j>``, ``splitting_drift_<i>``."""
+        values = {f"splitting_kick_{j}": b for j, b in enumerate(self.kicks)}
+        values.update({f"splitting_drift_{i}": a for i, a in enumerate(self.drifts, start=1)})
+        return values
 
-        On ẍ = −ω²x, in the variables (x, v/ω) and with z = ωh, a kick of b h is the matrix
-        [[1, 0], [−b z, 1]] and a drift of a h is [[1, a z], [0, 1]]; one step is their
-        product M(z) in step order, det M = 1. The step is stable (its powers bounded)
-        while |tr M(z)| < 2. The limit is the smallest z > 0 beyond which |tr M| exceeds 2:
-        the smallest positive root of tr M = ±2 after which |tr M| > 2 (a root where
-        |tr M| touches 2 and comes back, as for two Verlet steps at z = 2√2 where M = −I,
-        does not end the interval). tr M is a polynomial of degree 2s in z; its roots are
-        found by :func:`numpy.roots`.
-
-        Returns
-        -------
-        float
-            ωh_max for a step of h (s force evaluations); ωh_max / s per force evaluation.
-            Velocity Verlet (one stage) is 2; s Verlet steps of h/s (``rattle/2``,
-            ``rattle/3``) are 2s, the largest any s-stage splitting can have.
-
-        Examples
-        --------
-        >>> from openmm_alphaprk.integrators.splittings import splitting, two_stage
-        >>> round(two_stage(0.0).stability_limit(), 12)  # α = 0: one Verlet step of h
-        2.0
-        >>> [round(splitting(name).stability_limit(), 12) for name in ("rattle/2", "rattle/3")]
-        [4.0, 6.0]
-        >>> round(splitting("me2").stability_limit(), 4)  # 1.28 per force evaluation, Verlet's 2
-        2.5531
-        """
-        one, zero, z = Polynomial([1.0]), Polynomial([0.0]), Polynomial([0.0, 1.0])
-
-        def times(a: list[list[Polynomial]], b: list[list[Polynomial]]) -> list[list[Polynomial]]:
-            return [[a[i][0] * b[0][j] + a[i][1] * b[1][j] for j in range(2)] for i in range(2)]
-
-        step = [[one, zero], [zero, one]]
-        for j, b in enumerate(self.kicks):
-            step = times([[one, zero], [-b * z, one]], step)
-            if j < self.stages:
-                step = times([[one, self.drifts[j] * z], [zero, one]], step)
-        trace = step[0][0] + step[1][1]
-        roots = []
-        for edge in (trace - 2.0, trace + 2.0):
-            coefficients = edge.trim(1e-300).coef
-            for r in np.roots(coefficients[::-1]):
-                if abs(r.imag) <= 1e-6 * max(1.0, abs(r.real)) and r.real > 1e-9:
-                    roots.append(float(r.real))
-        roots.sort()
-        distinct = [r for i, r in enumerate(roots) if i == 0 or r - roots[i - 1] > 1e-6 * max(1.0, r)]
-        for i, r in enumerate(distinct):
-            after = 0.5 * (r + distinct[i + 1]) if i + 1 < len(distinct) else r + 0.1 * max(1.0, r)
-            if abs(trace(after)) > 2.0:
-                return r
-        return math.inf
+    @classmethod
+    def from_record(cls, values: dict[str, float], library: Library) -> Splitting | None:
+        """Return the splitting a program's globals record (:meth:`recorded`); None without one."""
+        stages = sum(name.startswith(cls.record_prefix) for name in values)
+        if not stages:
+            return None
+        kicks = tuple(values[f"splitting_kick_{j}"] for j in range(stages + 1))
+        drifts = tuple(values[f"splitting_drift_{i}"] for i in range(1, stages + 1))
+        known = library.find(lambda s: s.kicks == kicks and s.drifts == drifts)
+        if known is not None:
+            return known
+        if stages == 2 and drifts == (0.5, 0.5):
+            return two_stage(0.5 - kicks[0])
+        return cls("restored", kicks, drifts, 2, "read back from the step program")
 
     def listing(self) -> str:
         """One line: the name, the order, the kicks and drifts in step order."""
@@ -253,6 +216,15 @@ def _three_stage(name: str, a: float, b: float, source: str) -> Splitting:
     return Splitting(name, (b, 0.5 - b, 0.5 - b, b), (a, 1.0 - 2.0 * a, a), 2, source)
 
 
+#: RATTLE itself: one sub-step, kick(h/2) drift(h) kick(h/2) (the base step of RattleIntegrator).
+RATTLE = Splitting(
+    "rattle",
+    (0.5, 0.5),
+    (1.0,),
+    2,
+    "velocity Verlet with SHAKE and RATTLE: Ryckaert, Ciccotti & Berendsen, J. Comput. Phys. 23 (1977) "
+    "327; Andersen, J. Comput. Phys. 52 (1983) 24",
+)
 RATTLE2 = two_stage(0.25, "rattle/2", "two RATTLE steps of h/2 (the two-stage splitting with α = 1/4)")
 MINIMUM_ERROR2 = two_stage(
     0.5 - MCLACHLAN_B,
@@ -288,9 +260,9 @@ BCSS3 = _three_stage(
 )
 
 #: The named splittings, by name.
-SPLITTINGS: dict[str, Splitting] = {
-    s.name: s for s in (RATTLE2, MINIMUM_ERROR2, BCSS2, RATTLE3, MINIMUM_ERROR3, BCSS3)
-}
+SPLITTINGS: Library[Splitting] = Library(
+    "splitting", (RATTLE2, MINIMUM_ERROR2, BCSS2, RATTLE3, MINIMUM_ERROR3, BCSS3)
+)
 
 
 def splitting(name: str | Splitting) -> Splitting:
@@ -310,9 +282,4 @@ def splitting(name: str | Splitting) -> Splitting:
     >>> round(splitting("me2").alpha, 6)
     0.306817
     """
-    if isinstance(name, Splitting):
-        return name
-    try:
-        return SPLITTINGS[name]
-    except (KeyError, TypeError):
-        raise InputError(f"unknown splitting {name!r}; the named ones are {', '.join(SPLITTINGS)}.") from None
+    return SPLITTINGS.lookup(name)

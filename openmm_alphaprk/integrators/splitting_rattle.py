@@ -16,8 +16,7 @@ and the three-stage sets, are in :mod:`~.splittings`.
 The program is a sequence of constrained sub-steps (:meth:`~.splittings.Splitting.substeps`),
 each a position solve followed by its constraint step and a velocity update with its
 projection, built from the pieces RATTLE's step is built from
-(:meth:`~.pieces._StepProgram._add_position_solve`,
-:meth:`~.pieces._StepProgram._add_velocity_update`). Every force is read after the
+(:meth:`~.pieces._StepProgram._add_substeps`, the emitter of every explicit base step). Every force is read after the
 constraint step of the positions it is taken at, and each solve projects along the
 positions of the previous constraint step, the sub-step's start: the program is the same
 map on Reference, CPU and the common platform (CUDA, OpenCL, HIP), and virtual sites are
@@ -32,57 +31,6 @@ from .._units import InputError, to_dimensionless
 from .pieces import DEFAULT_CONSTRAINT_TOLERANCE, _StepProgram
 from .splittings import MINIMUM_ERROR2, SPLITTINGS, Splitting, two_stage
 from .splittings import splitting as named_splitting
-
-
-def add_splitting_stages(program: _StepProgram, chosen: Splitting, first_force: str = "f") -> None:
-    """Append a splitting's sub-steps to ``program``, from x0, v0 with F(x0) in ``first_force``.
-
-    Straight-line code, one position solve and one velocity update per stage (one force
-    evaluation each, counted): each solve is followed by its constraint step, so the force
-    read after it sees the solved positions on every platform, and projects along the
-    positions of the previous constraint step, the stage's start. Leaves x, v at the
-    step's end; x0, v0 at the last stage's start.
-
-    Parameters
-    ----------
-    program : _StepProgram
-        The step program being built.
-    chosen : Splitting
-        The splitting.
-    first_force : str, default "f"
-        The per-DOF variable holding F(x0) (``"fstart"`` where the energy was read between).
-    """
-    for i, (c, before, after) in enumerate(chosen.substeps(), start=1):
-        h = f"({c!r}*dt)"
-        if i > 1:
-            program.addComputePerDof("x0", "x")
-            program.addComputePerDof("v0", "v")
-        program._add_position_solve(f"{before!r}*{first_force if i == 1 else 'f'}", h)
-        program._add_velocity_update(f"{after!r}*f", h)
-
-
-def add_splitting_record(program: _StepProgram, chosen: Splitting) -> None:
-    """Keep a splitting's kicks and drifts as globals ``splitting_kick_<j>``, ``splitting_drift_<i>``."""
-    for j, b in enumerate(chosen.kicks):
-        program.addGlobalVariable(f"splitting_kick_{j}", b)
-    for i, a in enumerate(chosen.drifts, start=1):
-        program.addGlobalVariable(f"splitting_drift_{i}", a)
-
-
-def recorded_splitting(program: _StepProgram) -> Splitting | None:
-    """Read a splitting back from a program's globals (:func:`add_splitting_record`); None without one."""
-    names = {program.getGlobalVariableName(i) for i in range(program.getNumGlobalVariables())}
-    stages = sum(name.startswith("splitting_drift_") for name in names)
-    if not stages:
-        return None
-    kicks = tuple(program.getGlobalVariableByName(f"splitting_kick_{j}") for j in range(stages + 1))
-    drifts = tuple(program.getGlobalVariableByName(f"splitting_drift_{i}") for i in range(1, stages + 1))
-    for known in SPLITTINGS.values():
-        if known.kicks == kicks and known.drifts == drifts:
-            return known
-    if stages == 2 and drifts == (0.5, 0.5):
-        return two_stage(0.5 - kicks[0])
-    return Splitting("restored", kicks, drifts, 2, "read back from the step program")
 
 
 def requested_splitting(alpha: float | None, chosen: str | Splitting | None) -> Splitting:
@@ -194,13 +142,13 @@ class SplittingRattleIntegrator(_StepProgram):
     ) -> None:
         self._splitting = requested_splitting(alpha, splitting)
         super().__init__(timestep, constraint_tolerance)
-        add_splitting_record(self, self._splitting)
+        self._add_record(self._splitting)
         self._add_step(self._build_program, update_context_state=True)
 
     def _build_program(self) -> None:
         """Add the splitting's sub-steps from the step's start, F(x0) the cached force."""
         self._add_save_step_start()
-        add_splitting_stages(self, self._splitting)
+        self._add_substeps(self._splitting.substeps())
         self._add_end_step()
 
     @property
@@ -208,7 +156,7 @@ class SplittingRattleIntegrator(_StepProgram):
         """The splitting the program is made of (read back from the program's globals when restored)."""
         if "_splitting" in vars(self):
             return self._splitting
-        found = recorded_splitting(self)
+        found = self._recorded(Splitting, SPLITTINGS)
         if found is None:  # pragma: no cover - every program of this class records one
             raise InputError("this program records no splitting.")
         return found
