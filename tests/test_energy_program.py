@@ -76,7 +76,7 @@ def test_the_page_is_what_the_programs_give_now(programs):
     assert set(on_page) == set(rendered)
     for name, block in rendered.items():
         assert on_page[name] == block, (
-            f"{page.name}, block {name!r}: run python -m tools.reports.energy_program"
+            f"{page.name}, block {name!r}: run python -m tools.reports"
         )
 
 

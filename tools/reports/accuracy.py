@@ -1,12 +1,8 @@
 r"""The tables of docs/accuracy.md from the JSON of ``alphaprk bench accuracy``.
 
-Run from the repository root, after the benchmark wrote
-``docs/data/accuracy/accuracy_benchmark_SYSTEM.json``::
-
-    python -m tools.reports.accuracy
-
-It rewrites the generated blocks of ``docs/accuracy.md`` (between ``<!-- generated: NAME
--->`` and ``<!-- end generated: NAME -->``; the prose is left alone): per system the rows
+Part of ``python -m tools.reports``, after the benchmark wrote
+``docs/data/accuracy/accuracy_benchmark_SYSTEM.json``: it rewrites the generated blocks of
+``docs/accuracy.md`` (the prose is left alone): per system the rows
 (cost, energy error, position and velocity errors at each horizon), the equal-cost
 verdicts of the energy mode, the equilibrium averages, and the momenta of the isolated
 cluster; and draws ``docs/figures/accuracy_benchmark.png``.
@@ -20,7 +16,7 @@ from pathlib import Path
 
 from openmm_alphaprk.equal_cost import gain_text
 from openmm_alphaprk.workflows.plots import plot_accuracy
-from tools.reports.markdown import markdown_table, update_page
+from tools.reports.markdown import markdown_table
 
 DOCS = Path(__file__).resolve().parents[2] / "docs"
 SYSTEMS = ("tip3p-2nm", "tip3p-3nm", "villin", "water-cluster")
@@ -135,14 +131,19 @@ def momentum_table(result: dict) -> str:
     return markdown_table(header, lines)
 
 
-def main() -> None:
-    systems = {}
+def _systems() -> dict[str, dict]:
+    found = {}
     for system in SYSTEMS:
         path = DOCS / "data" / "accuracy" / f"accuracy_benchmark_{system}.json"
         if path.is_file():
-            systems[system] = json.loads(path.read_text(encoding="utf-8"))["systems"][system]
+            found[system] = json.loads(path.read_text(encoding="utf-8"))["systems"][system]
+    return found
+
+
+def render() -> dict[Path, dict[str, str]]:
+    """docs/accuracy.md's generated blocks, by name."""
     tables = {}
-    for system, result in systems.items():
+    for system, result in _systems().items():
         tables[f"{system} header"] = result["header"]
         tables[f"{system} rows"] = rows_table(result)
         if system == "water-cluster":
@@ -151,13 +152,10 @@ def main() -> None:
         tables[f"{system} verdicts"] = verdicts(result)
         if result.get("equilibrium"):
             tables[f"{system} equilibrium"] = equilibrium_table(result)
-    missing = update_page(DOCS / "accuracy.md", tables)
-    if missing:
-        raise SystemExit(f"docs/accuracy.md has no block for {missing}")
-    shown = {name: result for name, result in systems.items() if name != "water-cluster"}
+    return {DOCS / "accuracy.md": tables}
+
+
+def figures() -> None:
+    """Draw docs/figures/accuracy_benchmark.png."""
+    shown = {name: result for name, result in _systems().items() if name != "water-cluster"}
     plot_accuracy(shown, DOCS / "figures" / "accuracy_benchmark.png")
-    print("\n\n".join(f"{name}\n{text}" for name, text in tables.items()))
-
-
-if __name__ == "__main__":
-    main()

@@ -369,14 +369,3 @@ def render_blocks(programs: dict[int, Program] | None = None) -> dict[str, str]:
     )
     blocks["counts"] = f"{counts}."
     return blocks
-
-
-def main() -> None:
-    missing = markdown.update_page(PAGE, render_blocks())
-    if missing:
-        raise SystemExit(f"{PAGE} has no generated blocks {missing}")
-    print(f"wrote {PAGE}")
-
-
-if __name__ == "__main__":
-    main()

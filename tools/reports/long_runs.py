@@ -6,12 +6,11 @@ block differs from what the data renders).
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
-from tools.reports.markdown import generator_main, markdown_table, stale_blocks
+from tools.reports.markdown import markdown_table
 from tools.reports.numbers import sig, times, two
-from tools.reports.sources import DOCS, ROOT, Source, load
+from tools.reports.sources import DOCS, Source, load
 
 PAGE = DOCS / "long_runs.md"
 CUDA = "long_runs/cuda_h100/"
@@ -203,16 +202,3 @@ def render() -> dict[Path, dict[str, str]]:
         blocks["cpu energy mode"] = energy_mode_windows(CPU)
         blocks["cpu energy mode before"] = long_table(CPU_BEFORE) + "\n\n" + energy_mode_windows(CPU_BEFORE)
     return {PAGE: blocks}
-
-
-def differences() -> list[str]:
-    """Return ``PAGE: BLOCK`` for every block that is missing or differs from what the data renders."""
-    return stale_blocks(render(), ROOT)
-
-
-def main(argv: list[str] | None = None) -> int:
-    return generator_main(render, __doc__.split("\n\n")[0], ROOT, argv)
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -7,10 +7,11 @@ write what is between the markers; the prose around them is written by hand.
 
 from __future__ import annotations
 
-import argparse
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 #: A generated block: its begin marker, then anything but another marker, then its end marker.
 BLOCK_PATTERN = re.compile(
@@ -55,6 +56,28 @@ def markdown_table(header: list[str], rows: list[list[str]]) -> str:
         return "| " + " | ".join(cells) + " |"
 
     return "\n".join([line(header), line(["---"] * len(header)), *(line(r) for r in rows)])
+
+
+@dataclass(frozen=True)
+class Column:
+    """One column of a generated table: its title, how a row's cell is written, its alignment."""
+
+    title: str
+    cell: Callable[[Any], str]
+    align: str = "---"
+
+
+def table(rows: Iterable[Any], columns: Sequence[Column], caption: str = "") -> str:
+    """Render ``rows`` as the Markdown table ``columns`` describe, under ``caption`` if one is given.
+
+    The one renderer of the generated tables: a page's generator says which rows and which
+    columns; every cell is written by its column from the row (a dict of the data's schema).
+    """
+    lines = [[column.cell(row) for column in columns] for row in rows]
+    text = markdown_table([c.title for c in columns], lines)
+    aligns = "| " + " | ".join(c.align for c in columns) + " |"
+    text = text.replace("| " + " | ".join(["---"] * len(columns)) + " |", aligns, 1)
+    return f"{caption}\n\n{text}" if caption else text
 
 
 def read_blocks(text: str) -> dict[str, str]:
@@ -130,23 +153,3 @@ def stale_blocks(pages: dict[Path, dict[str, str]], root: Path) -> list[str]:
             f"{page.relative_to(root)}: {name}" for name, text in blocks.items() if on_page.get(name) != text
         ]
     return found
-
-
-def generator_main(
-    render: Callable[[], dict[Path, dict[str, str]]], description: str, root: Path, argv: list[str] | None
-) -> int:
-    """Run a page generator's command line: rewrite the blocks ``render`` gives, or ``--check`` them."""
-    parser = argparse.ArgumentParser(description=description)
-    parser.add_argument("--check", action="store_true", help="write nothing; exit 1 if a block differs")
-    args = parser.parse_args(argv)
-    pages = render()
-    if args.check:
-        stale = stale_blocks(pages, root)
-        print("\n".join(stale) or "every generated block is the data's")
-        return 1 if stale else 0
-    for page, blocks in pages.items():
-        missing = update_page(page, blocks)
-        if missing:
-            raise SystemExit(f"{page.relative_to(root)} has no block for {missing}")
-    print("rewrote the generated blocks of " + ", ".join(str(p.relative_to(root)) for p in pages))
-    return 0

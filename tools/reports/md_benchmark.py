@@ -107,6 +107,15 @@ def render_page(page: str, report: dict) -> str:
     return page
 
 
+def render() -> dict:
+    """docs/benchmarks.md's generated blocks from the report the last run wrote (``benchmarks.json``)."""
+    report = json.loads(JSON_OUT.read_text(encoding="utf-8"))
+    page = render_page(PAGE.read_text(encoding="utf-8"), report)
+    from tools.reports.markdown import read_blocks
+
+    return {PAGE: read_blocks(page)}
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run (optionally) the sweep, then write the JSON, the figures and the page's tables."""
     args = build_parser().parse_args(argv)

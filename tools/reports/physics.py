@@ -7,14 +7,13 @@ compares the blocks (exit 1 if one differs from what the data renders).
 from __future__ import annotations
 
 import math
-import sys
 from pathlib import Path
 
 import numpy as np
 
-from tools.reports.markdown import generator_main, markdown_table, stale_blocks
+from tools.reports.markdown import markdown_table
 from tools.reports.numbers import sig
-from tools.reports.sources import DOCS, ROOT, Source, load
+from tools.reports.sources import DOCS, Source, load
 
 PAGE = DOCS / "physics.md"
 WATER = "physics/tip3p-2nm.json"
@@ -437,18 +436,3 @@ def render(write_figures: bool = False) -> dict[Path, dict[str, str]]:
         if write_figures:
             figures(solute, "villin-h3")
     return {PAGE: blocks}
-
-
-def differences() -> list[str]:
-    """Return ``PAGE: BLOCK`` for every block that is missing or differs from what the data renders."""
-    return stale_blocks(render(), ROOT)
-
-
-def main(argv: list[str] | None = None) -> int:
-    if not (argv and "--check" in argv):
-        render(write_figures=True)
-    return generator_main(render, __doc__.split("\n\n")[0], ROOT, argv)
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -65,3 +65,59 @@ def source(path: str) -> Source:
 def load(path: str) -> tuple[dict, Source]:
     """Return the JSON file ``path`` (relative to docs/data/) and its provenance."""
     return json.loads((DATA / path).read_text(encoding="utf-8")), source(path)
+
+
+def provenance_line(sources: list[Source], run: str, link: str = "data/") -> str:
+    """One line a person can read: the run, where and when it ran, and a link to each data file.
+
+    ``link`` is the path from the page to docs/data/ (``data/`` from docs/, ``docs/data/`` from
+    the README).
+    """
+    days = sorted({s.date for s in sources})
+    machines = sorted({s.machine for s in sources})
+    when = days[0] if len(days) == 1 else f"{days[0]} to {days[-1]}"
+    files = ", ".join(f"[{s.path.split('/')[-1]}]({link}{s.path})" for s in sources)
+    return f"{run}; {' and '.join(machines)}, {when}. Data: {files}."
+
+
+# ------------------------------------------------------------------ the rows' one schema
+def canonical(row: dict) -> str | None:
+    """Return the registry's name of a row's integrator (``parse_integrator(spec).name``), None if unnamed."""
+    spec = row.get("integrator")
+    return parse_name(spec) if isinstance(spec, str) else None
+
+
+def pick(rows: list[dict], name: str, divisor: int = 1, labelled: str | None = None, **match) -> dict:
+    """Return the one row of ``rows`` of the integrator ``name`` at h/``divisor`` (and the ``match`` fields).
+
+    A row is the integrator's if its spec parses to ``name`` in the registry or, in files written
+    before the rows carried their spec, if its ``name`` is the registry's label of ``name`` (or
+    ``labelled``, the label the file was written with where the registry's has changed since).
+    """
+    from openmm_alphaprk.runs.integrator_names import label
+
+    wanted = parse_name(name)
+    try:
+        labels = {label(name), labelled}
+    except ValueError:
+        labels = {labelled}
+    found = [
+        row
+        for row in rows
+        if (canonical(row) == wanted or (row.get("integrator") is None and row.get("name") in labels))
+        and row.get("divisor", 1) == divisor
+        and all(row.get(key) == value for key, value in match.items())
+    ]
+    if len(found) != 1:
+        raise LookupError(f"{len(found)} rows of {name} at h/{divisor} {match or ''}")
+    return found[0]
+
+
+def parse_name(name: str) -> str:
+    """Return the registry's spelling of ``name`` (as written if the registry no longer reads it)."""
+    from openmm_alphaprk.runs.integrator_names import parse_integrator
+
+    try:
+        return parse_integrator(name).name
+    except ValueError:  # a name of the day the data were written
+        return name

@@ -8,14 +8,13 @@ block differs from what the data renders). The data are written by
 from __future__ import annotations
 
 import re
-import sys
 from dataclasses import dataclass
 from pathlib import Path
 
 from tools.reports.long_runs import long_table
-from tools.reports.markdown import generator_main, markdown_table, stale_blocks
+from tools.reports.markdown import markdown_table
 from tools.reports.numbers import sig, times, tolerance
-from tools.reports.sources import DATA, DOCS, ROOT, Source, load
+from tools.reports.sources import DATA, DOCS, Source, load
 
 PAGE = DOCS / "splitting.md"
 FOLDER = "splitting/"
@@ -371,16 +370,3 @@ def render() -> dict[Path, dict[str, str]]:
         if (DATA / FOLDER / path).is_file():
             blocks[name] = stability_table(path, title)
     return {PAGE: blocks}
-
-
-def differences() -> list[str]:
-    """Return ``PAGE: BLOCK`` for every block that is missing or differs from what the data renders."""
-    return stale_blocks(render(), ROOT)
-
-
-def main(argv: list[str] | None = None) -> int:
-    return generator_main(render, __doc__.split("\n\n")[0], ROOT, argv)
-
-
-if __name__ == "__main__":
-    sys.exit(main())
