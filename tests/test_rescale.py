@@ -267,7 +267,7 @@ def test_a_composition_of_rattle_steps_then_rescaling_holds_energy_and_keeps_the
     assert np.abs(p - p0).max() < 1e-9 * np.linalg.norm(p0)
     assert np.abs(angular - l0).max() < 1e-9 * np.linalg.norm(l0)
     assert integrator.last_step_force_evaluations == 5
-    composed = AlphaRattleIntegrator(H, 0.0, order=4)
+    composed = AlphaRattleIntegrator(H, alpha=0.0, order=4)
     composed_context = _context(system, composed, x, v)
     composed.step(50)
     rattle = RattleIntegrator(H)
@@ -452,7 +452,7 @@ def test_every_tenth_step_holds_energy_and_the_steps_between_are_rattles(spinnin
     integrator.step(20)
     start = context.getState(getPositions=True, getVelocities=True)
     integrator.step(9)
-    composed = RattleIntegrator(H) if order is None else AlphaRattleIntegrator(H, 0.0, order=order)
+    composed = RattleIntegrator(H) if order is None else AlphaRattleIntegrator(H, alpha=0.0, order=order)
     plain = _context(system, composed, start.getPositions(), start.getVelocities())
     composed.step(9)
     assert np.abs(positions_of(context) - positions_of(plain)).max() < 1e-12
@@ -596,7 +596,7 @@ def test_rescaling_intervals_are_names_of_the_vocabulary(name, order, compositio
     integrator = make_integrator(spec, 0.002)
     assert integrator.rescale_interval == interval
     assert parse_integrator(spec.name) == spec
-    assert "rattle+rescale@<N>" in INTEGRATOR_HELP
+    assert "rattle[4|6][:COMPOSITION][+rescale[@N]]" in INTEGRATOR_HELP
     assert folder_name(spec.name) == spec.name.replace("@", "_").replace(":", "_")
 
 

@@ -371,7 +371,7 @@ def test_the_vocabulary_names_the_splittings():
         assert label(name) == text
     assert make_integrator("split3-bcss+rescale@10", 0.002).rescale_interval == 10
     assert parse_integrator("split=1/4").alpha == 0.25
-    with pytest.raises(ValueError, match="split-me"):
+    with pytest.raises(ValueError, match="split:me2"):
         parse_integrator("split-nothing")
 
 

@@ -92,7 +92,7 @@ class Composition(StageSet):
         return replace(self, alpha_stages=chosen)
 
     def recorded(self) -> dict[str, float]:
-        """The coefficients and α's stages as globals ``stage_coefficient_<i>``, ``alpha_on_stage_<i>``."""
+        """Return the coefficients and α stages as ``stage_coefficient_<i>``, ``alpha_on_stage_<i>``."""
         values = {}
         for i, c in enumerate(self.coefficients, start=1):
             values[f"stage_coefficient_{i}"] = c
@@ -110,7 +110,8 @@ class Composition(StageSet):
         known = library.find(lambda c: c.coefficients == coefficients)
         if known is not None:
             return known.with_alpha_on(on)
-        return cls("restored", coefficients, int(values.get("order", 0)), "read back from the step program", on)
+        order = int(values.get("order", 0))
+        return cls("restored", coefficients, order, "read back from the step program", on)
 
     def listing(self) -> str:
         """One line: the name, the order and the coefficients, α's stages marked."""

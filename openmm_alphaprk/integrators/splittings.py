@@ -54,6 +54,8 @@ class Splitting(StageSet):
         The order of the splitting (2 for every set here).
     source
         Where the coefficients come from.
+    label
+        How tables and figures name it (default ``splitting <name>``).
     """
 
     name: str
@@ -61,11 +63,13 @@ class Splitting(StageSet):
     drifts: tuple[float, ...]
     order: int
     source: str
+    label: str = ""
     what: ClassVar[str] = "splitting"
     record_prefix: ClassVar[str] = "splitting_drift_"
 
     def __post_init__(self) -> None:
         kicks, drifts = tuple(map(float, self.kicks)), tuple(map(float, self.drifts))
+        object.__setattr__(self, "label", self.label or f"splitting {self.name}")
         object.__setattr__(self, "kicks", kicks)
         object.__setattr__(self, "drifts", drifts)
         if not drifts or len(kicks) != len(drifts) + 1:
@@ -113,7 +117,7 @@ class Splitting(StageSet):
         return tuple(result)
 
     def recorded(self) -> dict[str, float]:
-        """The kicks and drifts as globals ``splitting_kick_<j>``, ``splitting_drift_<i>``."""
+        """Return the kicks and drifts as globals ``splitting_kick_<j>``, ``splitting_drift_<i>``."""
         values = {f"splitting_kick_{j}": b for j, b in enumerate(self.kicks)}
         values.update({f"splitting_drift_{i}": a for i, a in enumerate(self.drifts, start=1)})
         return values
@@ -141,7 +145,9 @@ class Splitting(StageSet):
         return f"{self.name}: order {self.order}, {self.stages} stages ({', '.join(parts)})"
 
 
-def two_stage(alpha: float, name: str | None = None, source: str = "α-RATTLE's quadrature") -> Splitting:
+def two_stage(
+    alpha: float, name: str | None = None, source: str = "α-RATTLE's quadrature", label: str = ""
+) -> Splitting:
     """Return the two-stage member of the explicit α-family: kicks (½−α, 2α, ½−α), drifts (½, ½).
 
     Parameters
@@ -152,6 +158,8 @@ def two_stage(alpha: float, name: str | None = None, source: str = "α-RATTLE's 
         Default ``split=<alpha>``.
     source : str
         Where α comes from.
+    label : str, optional
+        How tables name it (default ``splitting α = <alpha>`` for an unnamed member).
 
     Returns
     -------
@@ -175,6 +183,7 @@ def two_stage(alpha: float, name: str | None = None, source: str = "α-RATTLE's 
         (0.5, 0.5),
         2,
         source,
+        label or (f"splitting α = {alpha!r}" if name is None else ""),
     )
 
 
@@ -211,9 +220,9 @@ def composed(base: Splitting, weights: tuple[float, ...], name: str, order: int,
     return Splitting(name, tuple(kicks), tuple(drifts), order, source)
 
 
-def _three_stage(name: str, a: float, b: float, source: str) -> Splitting:
+def _three_stage(name: str, a: float, b: float, source: str, label: str = "") -> Splitting:
     """kick(b) drift(a) kick(½−b) drift(1−2a) kick(½−b) drift(a) kick(b)."""
-    return Splitting(name, (b, 0.5 - b, 0.5 - b, b), (a, 1.0 - 2.0 * a, a), 2, source)
+    return Splitting(name, (b, 0.5 - b, 0.5 - b, b), (a, 1.0 - 2.0 * a, a), 2, source, label)
 
 
 #: RATTLE itself: one sub-step, kick(h/2) drift(h) kick(h/2) (the base step of RattleIntegrator).
@@ -224,22 +233,29 @@ RATTLE = Splitting(
     2,
     "velocity Verlet with SHAKE and RATTLE: Ryckaert, Ciccotti & Berendsen, J. Comput. Phys. 23 (1977) "
     "327; Andersen, J. Comput. Phys. 52 (1983) 24",
+    "RATTLE",
 )
-RATTLE2 = two_stage(0.25, "rattle/2", "two RATTLE steps of h/2 (the two-stage splitting with α = 1/4)")
+RATTLE2 = two_stage(
+    0.25, "rattle/2", "two RATTLE steps of h/2 (the two-stage splitting with α = 1/4)", "RATTLE at h/2, twice"
+)
 MINIMUM_ERROR2 = two_stage(
     0.5 - MCLACHLAN_B,
     "me2",
     "the minimum-error two-stage splitting, b = 0.1931833275037836 (alpha = 0.3068166724962164): "
     "McLachlan, SIAM J. Sci. Comput. 16 (1995) 151; Omelyan, Mryglod & Folk, Phys. Rev. E 65 "
     "(2002) 056706",
+    "splitting, minimum error (α = 0.3068)",
 )
 BCSS2 = two_stage(
     0.5 - BCSS2_B,
     "bcss2",
     "Blanes, Casas & Sanz-Serna, SIAM J. Sci. Comput. 36 (2014) A1556, the two-stage integrator, "
     "b = 0.211781 (alpha = 0.288219)",
+    "splitting, BCSS (α = 0.2882)",
 )
-RATTLE3 = _three_stage("rattle/3", 1.0 / 3.0, 1.0 / 6.0, "three RATTLE steps of h/3")
+RATTLE3 = _three_stage(
+    "rattle/3", 1.0 / 3.0, 1.0 / 6.0, "three RATTLE steps of h/3", "RATTLE at h/3, three times"
+)
 MINIMUM_ERROR3 = _three_stage(
     "me3",
     0.290485609075128726,
@@ -249,6 +265,7 @@ MINIMUM_ERROR3 = _three_stage(
     "Shaw, Mol. Phys. 110 (2012) 967, eq. 26 (where the kick is called a and the drift b); written "
     "here in the form kick(b) drift(a) kick(1/2-b) drift(1-2a) kick(1/2-b) drift(a) kick(b) of Blanes, "
     "Casas & Sanz-Serna (2014)",
+    "3-stage splitting, minimum error",
 )
 BCSS3 = _three_stage(
     "bcss3",
@@ -257,6 +274,7 @@ BCSS3 = _three_stage(
     "Blanes, Casas & Sanz-Serna, SIAM J. Sci. Comput. 36 (2014) A1556, the three-stage integrator "
     "kick(b) drift(a) kick(1/2-b) drift(1-2a) kick(1/2-b) drift(a) kick(b), drift a = 0.29619504261126, "
     "kick b = 0.11888010966548",
+    "3-stage splitting, BCSS",
 )
 
 #: The named splittings, by name.

@@ -124,7 +124,7 @@ class StageSet:
 
     # ------------------------------------------------------------ record in a program
     def recorded(self) -> dict[str, float]:
-        """Return the globals that keep this set in a step program (names start with :attr:`record_prefix`)."""
+        """Return the globals that keep this set in a program (names start with :attr:`record_prefix`)."""
         raise NotImplementedError
 
     @classmethod
@@ -161,7 +161,9 @@ class Library(dict[str, S], Generic[S]):
         """
         known = self.get(member.name)
         if known is not None and known != member:
-            raise InputError(f"a {self.what} named {member.name!r} exists already; give the new one another name.")
+            raise InputError(
+                f"a {self.what} named {member.name!r} exists already; give the new one another name."
+            )
         self[member.name] = member
         return member
 

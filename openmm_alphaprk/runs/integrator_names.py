@@ -1,60 +1,38 @@
-"""Integrators by name, for the driver and the command line: one vocabulary of names.
+"""Integrators by name, for the driver and the command line: one registry, one grammar.
 
-Names (:data:`VOCABULARY`, in the order ``--help`` lists them):
+Every name is ``BASE[:SET][=α][+rescale[@N]]`` (any case, white space ignored):
 
-``rattle``
-    :class:`~openmm_alphaprk.RattleIntegrator` (velocity Verlet with SHAKE/SETTLE and
-    RATTLE velocities; one force evaluation per step).
-``rattle+rescale``
-    :class:`~openmm_alphaprk.RattleRescaleIntegrator` (RATTLE, then the velocities
-    relative to the rigid-body motion scaled so that H = E_ref; one force evaluation per
-    step): the cheapest way to hold the energy, the baseline of the energy modes.
-``rattle4+rescale``, ``rattle6+rescale``
-    :class:`~openmm_alphaprk.RattleRescaleIntegrator` on the default fourth- or
-    sixth-order composition of RATTLE steps (``order=4``, ``order=6``): the
-    composition's trajectory, its energy held at E_ref by the rescaling.
-``rattle+rescale@<N>``, ``rattle4+rescale@<N>``, ``rattle6+rescale@<N>``
-    The same, rescaling every N-th step only (``rescale_interval=N``; ``rattle+rescale@10``);
-    the steps between are plain RATTLE (or the composition), with no energy read and no
-    sum. ``@1`` is the name without it. Written after a composition:
-    ``rattle4+rescale:triple-jump@10``.
-``alpha=<number>``
-    :class:`~openmm_alphaprk.AlphaRattleIntegrator` with that fixed α; fractions
-    are accepted (``alpha=1/6``). ``alpha=0`` is RATTLE.
-``energy``
-    :class:`~openmm_alphaprk.AlphaRattleEnergyIntegrator`, the energy-preserving mode
-    (α chosen every step so that H stays at E_ref).
-``alpha4=<number>``
-    α-RATTLE-4 (``order=4``: Suzuki's five-stage composition with α on the middle
-    stage) with that fixed α; ``alpha4=0`` is its composition of RATTLE steps (fourth
-    order, five force evaluations per step).
-``energy4``
-    α-RATTLE-4 in the energy-preserving mode (α* = O(h²)).
-``alpha6=<number>``, ``energy6``
-    The same on the default sixth-order composition.
-``<name>:<composition>``
-    ``alpha4``, ``energy4``, ``alpha6``, ``energy6``, ``rattle4+rescale`` or
-    ``rattle6+rescale`` on a named composition of
-    :data:`~openmm_alphaprk.integrators.compositions.COMPOSITIONS` instead of the
-    order's default (``energy4:triple-jump``, ``alpha4=0:suzuki5``).
-``split=<number>``
-    :class:`~openmm_alphaprk.SplittingRattleIntegrator` with that α: the explicit
-    α-family, kick((½−α)h) · drift(h/2) · kick(2αh) · drift(h/2) · kick((½−α)h) with
-    constraints (two force evaluations per step, no iteration); ``split=1/4`` is RATTLE at h/2.
-``split-me``, ``split-bcss``
-    The minimum-error two-stage member (α = 0.306817, McLachlan) and Blanes, Casas &
-    Sanz-Serna's (α = 0.288219).
-``split3-me``, ``split3-bcss``
-    The three-stage splittings (minimum error; Blanes, Casas & Sanz-Serna): three force
-    evaluations per step.
-``split-me+rescale``, ``split-bcss+rescale``, ``split3-me+rescale``, ``split3-bcss+rescale``
-    :class:`~openmm_alphaprk.RattleRescaleIntegrator` after that splitting
-    (``splitting=``); ``@N`` rescales every N-th step only (``split-me+rescale@10``).
-``verlet``
-    ``openmm.VerletIntegrator`` (leapfrog). Its ``State`` kinetic energy is a
-    half-step average, so its H − E_ref is not comparable step for step with the
-    velocity-Verlet integrators above (its fluctuation looks different for that
-    reason alone); its drift is comparable.
+``BASE``
+    A family of :data:`FAMILIES` with an optional digit, which is always the order:
+    ``rattle`` (:class:`~openmm_alphaprk.RattleIntegrator`), ``alpha``
+    (:class:`~openmm_alphaprk.AlphaRattleIntegrator`, fixed α), ``energy``
+    (:class:`~openmm_alphaprk.AlphaRattleEnergyIntegrator`, α chosen every step), ``split``
+    (:class:`~openmm_alphaprk.SplittingRattleIntegrator`, the explicit family) and ``verlet``
+    (``openmm.VerletIntegrator``, leapfrog). ``rattle4``, ``alpha4``, ``energy4``: the order's
+    default composition of steps (Suzuki's five stages; ``6``: McLachlan's nine).
+``:SET``
+    A named composition (:data:`~openmm_alphaprk.integrators.compositions.COMPOSITIONS`) for
+    the composed bases (``alpha4:triple-jump=0.01``), a named splitting
+    (:data:`~openmm_alphaprk.integrators.splittings.SPLITTINGS`) for ``split``
+    (``split:me2``, ``split:bcss3``).
+``=α``
+    The fixed α of ``alpha`` (required) and of ``split`` (the two-stage member; instead of a
+    set); fractions are accepted (``alpha=1/6``).
+``+rescale[@N]``
+    :class:`~openmm_alphaprk.RattleRescaleIntegrator` after the base (``rattle``, its
+    compositions, any splitting): the velocities relative to the rigid-body motion scaled
+    so that H = E_ref, every step or every N-th step (``rattle+rescale@10``).
+
+Names from before this grammar keep working and are read as the canonical one:
+``split-me`` = ``split:me2``, ``split-bcss`` = ``split:bcss2``, ``split3-me`` =
+``split:me3``, ``split3-bcss`` = ``split:bcss3``, and a set written after ``+rescale``
+(``rattle4+rescale:triple-jump@10`` = ``rattle4:triple-jump+rescale@10``).
+
+The labels of tables and figures (:func:`label`), the ``--help`` text
+(:data:`INTEGRATOR_HELP`), the unknown-name message and the names every test runs
+(:func:`example_names`) all come from :data:`FAMILIES` and the two libraries: a splitting
+registered in :data:`~openmm_alphaprk.integrators.splittings.SPLITTINGS` is ``split:NAME``
+at once.
 """
 
 from __future__ import annotations
@@ -77,162 +55,26 @@ from ..integrators import (
     RattleRescaleIntegrator,
     SplittingRattleIntegrator,
 )
-from ..integrators.compositions import COMPOSITIONS
+from ..integrators.compositions import COMPOSITIONS, DEFAULT_COMPOSITIONS
+from ..integrators.splittings import MINIMUM_ERROR2, SPLITTINGS
+from ..integrators.stage_sets import Library
 from ..observables import VERLET_IS_LEAPFROG
 from ..platforms import massless_particles
 from ..smooth_forces import polarizable_forces
 
 
-@dataclass(frozen=True)
-class IntegratorName:
-    """One name of the vocabulary: as written (``<number>`` for a value), what it makes, its help."""
-
-    name: str
-    kind: str
-    order: int
-    help: str
-
-    @property
-    def takes_number(self) -> bool:
-        """True for ``alpha=<number>`` and ``alpha4=<number>``."""
-        return self.name.endswith("=<number>")
-
-
-VOCABULARY = (
-    IntegratorName(
-        "rattle",
-        "rattle",
-        2,
-        "RattleIntegrator (velocity Verlet + SHAKE/SETTLE/RATTLE, 1 force evaluation/step)",
-    ),
-    IntegratorName(
-        "rattle+rescale",
-        "rescale",
-        2,
-        "RattleRescaleIntegrator (RATTLE, then the velocities relative to the rigid-body motion scaled "
-        "so that H = E_ref; 1 force evaluation/step, its energy read with it)",
-    ),
-    IntegratorName(
-        "rattle4+rescale",
-        "rescale",
-        4,
-        "RattleRescaleIntegrator(order=4): Suzuki's 5-stage composition of RATTLE steps, then the "
-        "rescaling (5 evaluations/step, the energy read with the last): H held at E_ref and, on "
-        "water, positions 16-20x closer to the true dynamics than RATTLE's at equal cost",
-    ),
-    IntegratorName(
-        "rattle6+rescale",
-        "rescale",
-        6,
-        "RattleRescaleIntegrator(order=6): McLachlan's 9-stage composition of RATTLE steps, then the "
-        "rescaling (9 evaluations/step)",
-    ),
-    IntegratorName(
-        "rattle+rescale@<N>",
-        "rescale",
-        2,
-        "the same rescaling every N-th step only (rattle+rescale@10; also rattle4+rescale@N, "
-        "rattle6+rescale@N): the steps between are plain RATTLE, no energy read, no sum",
-    ),
-    IntegratorName(
-        "alpha=<number>",
-        "alpha",
-        2,
-        "AlphaRattleIntegrator with fixed alpha, fractions allowed (alpha=1/6; alpha=0 is RATTLE)",
-    ),
-    IntegratorName(
-        "energy",
-        "energy",
-        2,
-        "AlphaRattleEnergyIntegrator(h), alpha chosen per step to hold H at E_ref "
-        "(a midpoint and an end force per trial of alpha, more where the midpoint iteration needs "
-        "them; the run's table gives the measured evaluations/step)",
-    ),
-    IntegratorName(
-        "alpha4=<number>",
-        "alpha",
-        4,
-        "the same with order=4 (Suzuki's 5-stage composition, the most accurate per evaluation of the "
-        "measured fourth-order sets, docs/compositions.md; alpha on the middle stage; alpha4=0 is its "
-        "4th-order composition of RATTLE steps, 5 evaluations/step)",
-    ),
-    IntegratorName(
-        "energy4",
-        "energy",
-        4,
-        "order=4 in the energy mode (the stages before the middle once, then the middle stage and "
-        "those after it again for each trial of alpha)",
-    ),
-    IntegratorName(
-        "alpha6=<number>",
-        "alpha",
-        6,
-        "the same with order=6 (McLachlan's 9-stage composition; alpha6=0 is its 6th-order composition "
-        "of RATTLE steps, 9 evaluations/step)",
-    ),
-    IntegratorName("energy6", "energy", 6, "the energy mode on the default sixth-order composition"),
-    IntegratorName(
-        "split=<number>",
-        "split",
-        2,
-        "SplittingRattleIntegrator with that alpha: the explicit alpha-family, kick((1/2-alpha)h) "
-        "drift(h/2) kick(2 alpha h) drift(h/2) kick((1/2-alpha)h) with constraints (2 evaluations/step, "
-        "no iteration; split=1/4 is RATTLE at h/2)",
-    ),
-    IntegratorName(
-        "split-me",
-        "split",
-        2,
-        "the minimum-error two-stage splitting (alpha = 0.306817, McLachlan 1995; 2 evaluations/step)",
-    ),
-    IntegratorName(
-        "split-bcss",
-        "split",
-        2,
-        "Blanes, Casas & Sanz-Serna's two-stage splitting (alpha = 0.288219; 2 evaluations/step)",
-    ),
-    IntegratorName(
-        "split3-me",
-        "split",
-        2,
-        "the minimum-error three-stage splitting (Predescu et al. 2012; 3 evaluations/step)",
-    ),
-    IntegratorName(
-        "split3-bcss", "split", 2, "Blanes, Casas & Sanz-Serna's three-stage splitting (3 evaluations/step)"
-    ),
-    IntegratorName(
-        "split-me+rescale",
-        "rescale",
-        2,
-        "RattleRescaleIntegrator(splitting='me2'): the minimum-error splitting, then the rescaling "
-        "(also split-bcss+rescale, split3-me+rescale, split3-bcss+rescale; @N every N-th step)",
-    ),
-    IntegratorName("verlet", "verlet", 2, VERLET_IS_LEAPFROG),
-)
-_BY_NAME = {
-    entry.name.removesuffix("=<number>"): entry for entry in VOCABULARY if not entry.name.endswith("@<N>")
-}
-#: The named splittings of the vocabulary (:data:`~openmm_alphaprk.integrators.splittings.SPLITTINGS`).
-SPLITTING_NAMES = {"split-me": "me2", "split-bcss": "bcss2", "split3-me": "me3", "split3-bcss": "bcss3"}
-for _name, _chosen in SPLITTING_NAMES.items():
-    if f"{_name}+rescale" not in _BY_NAME:
-        _BY_NAME[f"{_name}+rescale"] = IntegratorName(
-            f"{_name}+rescale", "rescale", 2, f"RattleRescaleIntegrator(splitting={_chosen!r})"
-        )
-
-#: The names, in the vocabulary's order (``rattle, alpha=<number>, …, verlet``), for ``--help``.
-INTEGRATOR_NAMES = ", ".join(entry.name for entry in VOCABULARY)
-#: One line per name, for ``--help``.
-INTEGRATOR_HELP = "; ".join(f"{entry.name} = {entry.help}" for entry in VOCABULARY)
-
-
 class UnknownIntegratorError(InputError):
-    """Raised for an integrator name that is not in :data:`VOCABULARY`."""
+    """Raised for an integrator name that the grammar does not read."""
 
 
 @dataclass(frozen=True)
 class IntegratorSpec:
-    """A parsed integrator name: ``kind`` is rattle, rescale, alpha, energy or verlet; ``order`` 2 or 4."""
+    """A parsed integrator name.
+
+    ``kind`` is the family's word (rattle, alpha, energy, split, verlet), or ``rescale`` for
+    a rescaled base; ``order`` the digit (2 without); ``composition`` and ``splitting`` the
+    set named after ``:`` (``splitting`` also for ``split`` without one: its default).
+    """
 
     kind: str
     alpha: float | None = None
@@ -246,6 +88,28 @@ class IntegratorSpec:
     def name(self) -> str:
         """Canonical name (``alpha=0.1666…`` keeps the user's fraction text)."""
         return self.text or self.kind
+
+    @property
+    def family(self) -> Family:
+        """The family of the base step (``split`` for a rescaled splitting, else ``rattle``)."""
+        if self.kind != "rescale":
+            return FAMILIES[self.kind]
+        return FAMILIES["split" if self.splitting is not None else "rattle"]
+
+    @property
+    def force_evaluations(self) -> int | None:
+        """Force evaluations per step where the program fixes them; None where α ≠ 0 iterates."""
+        if self.kind == "verlet":
+            return 1
+        if self.kind == "energy" or (self.kind == "alpha" and self.alpha != 0.0):
+            return None
+        if self.splitting is not None:
+            return SPLITTINGS.lookup(self.splitting).stages
+        if self.kind == "split":
+            return 2
+        if self.order == 2:
+            return 1
+        return COMPOSITIONS.lookup(self.composition or DEFAULT_COMPOSITIONS[self.order]).stages
 
     def supports_virtual_sites(self, platform: str) -> bool:
         """Tell whether the integrator is right for systems with virtual sites on ``platform``.
@@ -266,109 +130,300 @@ class IntegratorSpec:
         return self.kind != "verlet"
 
 
-def parse_integrator(text: str | IntegratorSpec) -> IntegratorSpec:
-    """Parse an integrator name of :data:`VOCABULARY` (any case; white space is ignored).
+Make = Callable[[IntegratorSpec, unit.Quantity, float], mm.Integrator]
 
-    ``rattle``, ``rattle+rescale``, ``verlet``, ``energy``, ``energy4``, ``alpha=<x>``, ``alpha4=<x>``;
-    ``rattle+rescale@<N>`` (and ``rattle4+rescale@<N>`` …) with ``rescale_interval`` N.
+
+@dataclass(frozen=True)
+class Family:
+    """One base word of the grammar and all that is derived from it.
+
+    Attributes
+    ----------
+    word
+        The name's first word.
+    title
+        The label's first words (``RATTLE``; ``-<order>`` is added for a digit).
+    help
+        What the family is, for ``--help`` (no measured numbers: they live in docs/).
+    make
+        Creates the integrator of a parsed name (timestep a Quantity, the constraint tolerance).
+    orders
+        The digits it takes (2: none).
+    sets
+        What ``:SET`` names: the compositions (for a digit) or the splittings.
+    alpha
+        ``"required"``, ``"optional"`` (instead of a set) or ``"none"``.
+    rescalable
+        Whether ``+rescale[@N]`` may follow it.
+    """
+
+    word: str
+    title: str
+    help: str
+    make: Make
+    orders: tuple[int, ...] = (2,)
+    sets: Library | None = None
+    alpha: str = "none"
+    rescalable: bool = False
+
+    @property
+    def form(self) -> str:
+        """The family's names in the grammar's notation, e.g. ``rattle[4|6][:COMPOSITION][+rescale[@N]]``."""
+        text = self.word
+        if len(self.orders) > 1:
+            text += "[" + "|".join(str(order) for order in self.orders if order != 2) + "]"
+        if self.sets is not None:
+            text += f"[:{self.sets.what.upper()}]"
+        if self.alpha != "none":
+            text += "=<number>" if self.alpha == "required" else "[=<number>]"
+        if self.rescalable:
+            text += "[+rescale[@N]]"
+        return text
+
+
+def _make_rattle(spec: IntegratorSpec, timestep: unit.Quantity, tolerance: float) -> mm.Integrator:
+    return RattleIntegrator(
+        timestep, constraint_tolerance=tolerance, order=spec.order, composition=spec.composition
+    )
+
+
+def _make_rescale(spec: IntegratorSpec, timestep: unit.Quantity, tolerance: float) -> mm.Integrator:
+    return RattleRescaleIntegrator(
+        timestep,
+        constraint_tolerance=tolerance,
+        order=spec.order,
+        composition=spec.composition,
+        rescale_interval=spec.rescale_interval,
+        splitting=spec.splitting,
+    )
+
+
+def _make_split(spec: IntegratorSpec, timestep: unit.Quantity, tolerance: float) -> mm.Integrator:
+    return SplittingRattleIntegrator(
+        timestep,
+        alpha=spec.alpha if spec.splitting is None else None,
+        constraint_tolerance=tolerance,
+        splitting=spec.splitting,
+    )
+
+
+def _make_alpha(spec: IntegratorSpec, timestep: unit.Quantity, tolerance: float) -> mm.Integrator:
+    return AlphaRattleIntegrator(
+        timestep,
+        alpha=spec.alpha,
+        constraint_tolerance=tolerance,
+        order=spec.order,
+        composition=spec.composition,
+    )
+
+
+def _make_energy(spec: IntegratorSpec, timestep: unit.Quantity, tolerance: float) -> mm.Integrator:
+    return AlphaRattleEnergyIntegrator(
+        timestep, constraint_tolerance=tolerance, order=spec.order, composition=spec.composition
+    )
+
+
+def _make_verlet(spec: IntegratorSpec, timestep: unit.Quantity, tolerance: float) -> mm.Integrator:
+    integrator = mm.VerletIntegrator(timestep)
+    integrator.setConstraintTolerance(tolerance)
+    return integrator
+
+
+#: The families of the grammar, in the order ``--help`` lists them.
+FAMILIES: dict[str, Family] = {
+    family.word: family
+    for family in (
+        Family(
+            "rattle",
+            "RATTLE",
+            "RattleIntegrator: velocity Verlet with SHAKE/SETTLE and RATTLE velocities, 1 force evaluation "
+            "per step; rattle4, rattle6: a composition of RATTLE steps of that order (one evaluation per "
+            "stage); +rescale: RattleRescaleIntegrator, the velocities relative to the rigid-body motion "
+            "then scaled so that H = E_ref, every step or every N-th step (rattle+rescale@10), the "
+            "energy read with the last force",
+            _make_rattle,
+            orders=(2, 4, 6),
+            sets=COMPOSITIONS,
+            rescalable=True,
+        ),
+        Family(
+            "alpha",
+            "α-RATTLE",
+            "AlphaRattleIntegrator with a fixed alpha, fractions allowed (alpha=1/6; alpha=0 is RATTLE); "
+            "alpha4, alpha6: alpha on the middle stage of the order's composition (alpha4=0 is the "
+            "composition of RATTLE steps)",
+            _make_alpha,
+            orders=(2, 4, 6),
+            sets=COMPOSITIONS,
+            alpha="required",
+        ),
+        Family(
+            "energy",
+            "α-RATTLE",
+            "AlphaRattleEnergyIntegrator: alpha chosen every step to hold H at E_ref (a midpoint and an "
+            "end force per trial of alpha; the run's table gives the evaluations per step); energy4, "
+            "energy6 on the order's composition",
+            _make_energy,
+            orders=(2, 4, 6),
+            sets=COMPOSITIONS,
+        ),
+        Family(
+            "split",
+            "splitting",
+            "SplittingRattleIntegrator, the explicit alpha-family: split=<alpha> is kick((1/2-alpha)h) "
+            "drift(h/2) kick(2 alpha h) drift(h/2) kick((1/2-alpha)h) with constraints (split=1/4 is RATTLE "
+            "at h/2), split:SPLITTING a named splitting (split:me2, the minimum-error member, is the "
+            "default), one force evaluation per stage, no iteration; +rescale as for rattle",
+            _make_split,
+            sets=SPLITTINGS,
+            alpha="optional",
+            rescalable=True,
+        ),
+        Family("verlet", "VerletIntegrator", f"openmm.VerletIntegrator ({VERLET_IS_LEAPFROG})", _make_verlet),
+    )
+}
+
+#: Names from before the grammar, and the canonical names they are read as.
+ALIASES = {
+    "split-me": "split:me2",
+    "split-bcss": "split:bcss2",
+    "split3-me": "split:me3",
+    "split3-bcss": "split:bcss3",
+}
+
+#: The grammar's forms, one per family (``rattle[4|6][:COMPOSITION][+rescale[@N]]`` …).
+VOCABULARY = tuple(family.form for family in FAMILIES.values())
+#: The forms, for ``--help``.
+INTEGRATOR_NAMES = ", ".join(VOCABULARY)
+
+
+def _integrator_help() -> str:
+    sets = "; ".join(
+        f"{library.what.upper()} one of {', '.join(library)}" for library in (COMPOSITIONS, SPLITTINGS)
+    )
+    families = "; ".join(f"{family.form} = {family.help}" for family in FAMILIES.values())
+    return f"BASE[:SET][=alpha][+rescale[@N]], the digit the order: {families}; {sets}"
+
+
+#: One line per family and the named sets, for ``--help``.
+INTEGRATOR_HELP = _integrator_help()
+
+
+def _unknown(text: object, why: str) -> UnknownIntegratorError:
+    """Return the one error for a name the grammar does not read: why, then the grammar and examples."""
+    return UnknownIntegratorError(
+        f"integrator {text!r}: {why}. Names are BASE[:SET][=alpha][+rescale[@N]]: {INTEGRATOR_NAMES} "
+        f"(compositions: {', '.join(COMPOSITIONS)}; splittings: {', '.join(SPLITTINGS)}); e.g. rattle, "
+        "rattle+rescale@10, rattle4+rescale, alpha=1/6, alpha4=0, energy4:triple-jump, split:me2+rescale, "
+        "verlet."
+    )
+
+
+def _number(text: object, number: str) -> float:
+    try:
+        value = float(Fraction(number)) if re.fullmatch(r"[-+0-9.e/]+", number) else None
+    except (ValueError, ZeroDivisionError):
+        value = None
+    if value is None or value != value or abs(value) == float("inf"):
+        raise _unknown(text, f"alpha must be a finite number or fraction, got {number!r}")
+    return value
+
+
+def _canonical_text(cleaned: str) -> str:
+    """Read the names from before the grammar as canonical ones (:data:`ALIASES`, a set after +rescale)."""
+    for old, new in ALIASES.items():
+        if cleaned == old or cleaned.startswith((old + "+", old + "@")):
+            cleaned = new + cleaned[len(old) :]
+    moved = re.fullmatch(r"([^:+]+)\+rescale(@[^:]*)?:([^@]+)(@.*)?", cleaned)
+    if moved is not None:
+        base, at_before, chosen, at_after = moved.groups()
+        cleaned = f"{base}:{chosen}+rescale{at_before or ''}{at_after or ''}"
+    return cleaned
+
+
+def parse_integrator(text: str | IntegratorSpec) -> IntegratorSpec:
+    """Parse an integrator name, ``BASE[:SET][=α][+rescale[@N]]`` (any case; white space is ignored).
 
     Raises
     ------
     UnknownIntegratorError
-        With the list of valid names.
+        Naming what is wrong, with the grammar, the named sets and examples.
     """
     if isinstance(text, IntegratorSpec):
         return text
-    cleaned = re.sub(r"\s+", "", str(text)).lower()
-    interval, cleaned = _rescale_interval_of(text, cleaned)
-    named, colon, chosen = cleaned.partition(":")
-    prefix, equals, number = named.partition("=")
-    entry = _BY_NAME.get(prefix)
+    cleaned = _canonical_text(re.sub(r"\s+", "", str(text)).lower())
+    base, plus, layer = cleaned.partition("+")
+    interval = None
+    if plus:
+        found = re.fullmatch(r"rescale(?:@(.*))?", layer)
+        if found is None:
+            raise _unknown(
+                text, f"{'+' + layer!r} is not a way of holding the energy; the one is +rescale[@N]"
+            )
+        if found.group(1) is not None:
+            if not re.fullmatch(r"[0-9]+", found.group(1)) or int(found.group(1)) < 1:
+                raise _unknown(
+                    text,
+                    "the rescaling interval after '@' must be a positive integer, the rescaling every N-th "
+                    "step (rattle+rescale@10)",
+                )
+            interval = int(found.group(1))
+    elif "@" in base:
+        raise _unknown(text, "only a rescaled name takes an interval @N (rattle+rescale@10)")
+    head, equals, number = base.partition("=")
+    named, colon, chosen = head.partition(":")
+    word_digit = re.fullmatch(r"([a-z]+)([0-9]*)", named)
+    family = FAMILIES.get(word_digit.group(1)) if word_digit else None
+    if family is None:
+        raise _unknown(text, f"no integrator family {named!r}")
+    order = int(word_digit.group(2)) if word_digit.group(2) else 2
+    if order not in family.orders or word_digit.group(2) == "2":
+        raise _unknown(
+            text, f"{family.word} takes {'no order' if len(family.orders) == 1 else 'order 4 or 6'}"
+        )
+    composition = splitting = None
     if colon:
-        if entry is None or entry.order == 2:
-            raise UnknownIntegratorError(
-                f"{text!r}: only alpha4, energy4, alpha6, energy6, rattle4+rescale and rattle6+rescale "
-                "take a composition (e.g. energy4:triple-jump)."
+        if family.sets is None or (family.sets is COMPOSITIONS and order == 2):
+            raise _unknown(
+                text, f"{named} takes no set (a composition needs an order: {family.word}4:triple-jump)"
             )
-        found = COMPOSITIONS.get(chosen)
-        if found is None or found.order != entry.order:
-            fitting = [c.name for c in COMPOSITIONS.values() if c.order == entry.order]
-            raise UnknownIntegratorError(
-                f"{text!r}: no composition {chosen!r} of order {entry.order}; "
-                f"use one of {', '.join(fitting)}."
-            )
-    composition_name = chosen if colon else None
-    if interval is not None and (entry is None or entry.kind != "rescale" or equals):
-        raise UnknownIntegratorError(
-            f"{text!r}: only rattle+rescale, rattle4+rescale and rattle6+rescale take a rescaling "
-            "interval @N (e.g. rattle+rescale@10)."
+        if chosen not in family.sets:
+            raise _unknown(text, f"no {family.sets.what} {chosen!r}")
+        if family.sets is COMPOSITIONS:
+            if COMPOSITIONS[chosen].order != order:
+                fitting = [c.name for c in COMPOSITIONS.values() if c.order == order]
+                raise _unknown(text, f"{chosen!r} is not of order {order}; use one of {', '.join(fitting)}")
+            composition = chosen
+        else:
+            splitting = chosen
+    alpha = None
+    if equals:
+        if family.alpha == "none":
+            raise _unknown(text, f"{named} takes no alpha")
+        if splitting is not None:
+            raise _unknown(text, "give a splitting or alpha, not both")
+        alpha = _number(text, number)
+    elif family.alpha == "required":
+        raise _unknown(text, f"{named} needs alpha ({named}=0.1)")
+    if family.word == "split" and alpha is None and splitting is None:
+        splitting = MINIMUM_ERROR2.name
+        base = f"split:{splitting}"
+    if plus and not family.rescalable:
+        raise _unknown(
+            text, f"+rescale follows rattle (and its compositions) or a splitting, not {family.word}"
         )
-    chosen_splitting = SPLITTING_NAMES.get(prefix.removesuffix("+rescale"))
-    if interval is not None:
-        canonical = cleaned if interval == 1 else f"{cleaned}@{interval}"
-        return IntegratorSpec(
-            entry.kind,
-            text=canonical,
-            order=entry.order,
-            composition=composition_name,
-            rescale_interval=interval,
-            splitting=chosen_splitting,
-        )
-    if entry is not None and not entry.takes_number and not equals:
-        return IntegratorSpec(
-            entry.kind,
-            text=cleaned,
-            order=entry.order,
-            composition=composition_name,
-            splitting=chosen_splitting,
-        )
-    if entry is not None and entry.takes_number and re.fullmatch(r"[-+0-9.e/]+", number):
-        try:
-            value = float(Fraction(number))
-        except (ValueError, ZeroDivisionError):
-            value = None
-        if value is not None and value == value and abs(value) != float("inf"):
-            return IntegratorSpec(
-                entry.kind, value, text=cleaned, order=entry.order, composition=composition_name
-            )
-    raise UnknownIntegratorError(
-        f"unknown integrator {text!r}; use one of: rattle, rattle+rescale, verlet, energy, energy4, "
-        "alpha=<number>, alpha4=<number> (e.g. alpha=0.5, alpha=1/6, alpha4=0), energy6, alpha6=<number>, "
-        "rattle4+rescale, rattle6+rescale; the composed ones optionally on a named composition "
-        "(energy4:triple-jump); the splittings split=<number>, split-me, split-bcss, split3-me, "
-        "split3-bcss (and each +rescale); the rescaling ones optionally every N-th step (rattle+rescale@10)."
+    if plus and alpha is not None:
+        raise _unknown(text, "+rescale follows a named splitting (split:me2+rescale), not split=<alpha>")
+    rescaled = "+rescale" + (f"@{interval}" if interval and interval > 1 else "") if plus else ""
+    return IntegratorSpec(
+        "rescale" if plus else family.word,
+        alpha,
+        text=base + rescaled,
+        order=order,
+        composition=composition,
+        rescale_interval=interval or 1,
+        splitting=splitting,
     )
-
-
-def _rescale_interval_of(text: object, cleaned: str) -> tuple[int | None, str]:
-    """Split a rescaling interval ``@N`` off a cleaned name (before or after a composition).
-
-    Returns the interval (None without ``@``) and the name without it.
-    """
-    named, at, rest = cleaned.partition("@")
-    if not at:
-        return None, cleaned
-    number, colon, composition = rest.partition(":")
-    if not re.fullmatch(r"[0-9]+", number) or int(number) < 1 or "@" in composition:
-        raise UnknownIntegratorError(
-            f"{text!r}: the rescaling interval after '@' must be a positive integer, the rescaling every "
-            "N-th step; write e.g. rattle+rescale@10 (or rattle4+rescale:triple-jump@10)."
-        )
-    return int(number), named + colon + composition
-
-
-#: Display labels of the names without a number (tables, figures, benchmarks, reports).
-_LABELS = {
-    "rattle": "RATTLE",
-    "rattle+rescale": "RATTLE + rescaling",
-    "verlet": "VerletIntegrator",
-    "energy": "α-RATTLE energy mode",
-    "energy4": "α-RATTLE-4 energy mode",
-    "split-me": "splitting, minimum error (α = 0.3068)",
-    "split-bcss": "splitting, BCSS (α = 0.2882)",
-    "split3-me": "3-stage splitting, minimum error",
-    "split3-bcss": "3-stage splitting, BCSS",
-}
 
 
 def label(spec: str | IntegratorSpec) -> str:
@@ -376,35 +431,28 @@ def label(spec: str | IntegratorSpec) -> str:
 
     The one set of labels the benchmarks, reports and figures use (``RATTLE``,
     ``RATTLE + rescaling``, ``RATTLE + rescaling every 10 steps``, ``VerletIntegrator``,
-    ``α-RATTLE α = x``, ``α-RATTLE-4 α = x``, ``α-RATTLE energy
-    mode``, ``α-RATTLE-4 energy mode``); ``x`` is written as given (fractions kept).
+    ``α-RATTLE α = x``, ``α-RATTLE-4 α = x``, ``α-RATTLE energy mode``, a splitting's own
+    label); ``x`` is written as given (fractions kept).
     """
     spec = parse_integrator(spec)
-    every = f" every {spec.rescale_interval} steps" if spec.rescale_interval > 1 else ""
-    if spec.splitting is not None and spec.kind == "rescale":
-        named = spec.name.partition("+rescale")[0]
-        return f"{_LABELS[named]} + rescaling{every}"
-    if spec.kind == "split":
-        return (
-            _LABELS[spec.name]
-            if spec.splitting is not None
-            else f"splitting α = {spec.name.partition('=')[2]}"
-        )
-    family = "α-RATTLE" if spec.order == 2 else f"α-RATTLE-{spec.order}"
-    if spec.kind == "rescale" and spec.order != 2:
-        family = f"RATTLE-{spec.order}"
-    if spec.composition is not None:
-        family += f" ({spec.composition})"
-    every = f" every {spec.rescale_interval} steps" if spec.rescale_interval > 1 else ""
-    if spec.kind == "rescale" and spec.order != 2:
-        return f"{family} + rescaling{every}"
+    family = spec.family
+    if spec.splitting is not None:
+        text = SPLITTINGS.lookup(spec.splitting).label
+    elif family.word == "split":
+        text = f"splitting α = {spec.name.partition('=')[2]}"
+    else:
+        text = family.title + (f"-{spec.order}" if spec.order != 2 else "")
+        if spec.composition is not None:
+            text += f" ({spec.composition})"
+        if spec.kind == "alpha":
+            text += f" α = {spec.name.partition('=')[2]}"
+        elif spec.kind == "energy":
+            text += " energy mode"
     if spec.kind == "rescale":
-        return f"RATTLE + rescaling{every}"
-    if spec.kind == "energy":
-        return f"{family} energy mode"
-    if spec.kind != "alpha":
-        return _LABELS[spec.name]
-    return f"{family} α = {spec.name.partition(':')[0].partition('=')[2]}"
+        text += " + rescaling" + (
+            f" every {spec.rescale_interval} steps" if spec.rescale_interval > 1 else ""
+        )
+    return text
 
 
 def make_integrator(
@@ -419,42 +467,30 @@ def make_integrator(
     spec = parse_integrator(spec)
     if not unit.is_quantity(timestep):
         timestep = timestep * unit.picoseconds
-    if spec.kind == "rattle":
-        return RattleIntegrator(timestep, constraint_tolerance=constraint_tolerance)
-    if spec.kind == "rescale":
-        return RattleRescaleIntegrator(
-            timestep,
-            constraint_tolerance=constraint_tolerance,
-            order=spec.order,
-            composition=spec.composition,
-            rescale_interval=spec.rescale_interval,
-            splitting=spec.splitting,
-        )
-    if spec.kind == "split":
-        return SplittingRattleIntegrator(
-            timestep,
-            alpha=spec.alpha if spec.splitting is None else None,
-            constraint_tolerance=constraint_tolerance,
-            splitting=spec.splitting,
-        )
-    if spec.kind == "alpha":
-        return AlphaRattleIntegrator(
-            timestep,
-            alpha=spec.alpha,
-            constraint_tolerance=constraint_tolerance,
-            order=spec.order,
-            composition=spec.composition,
-        )
-    if spec.kind == "energy":
-        return AlphaRattleEnergyIntegrator(
-            timestep,
-            constraint_tolerance=constraint_tolerance,
-            order=spec.order,
-            composition=spec.composition,
-        )
-    integrator = mm.VerletIntegrator(timestep)
-    integrator.setConstraintTolerance(constraint_tolerance)
-    return integrator
+    make = _make_rescale if spec.kind == "rescale" else spec.family.make
+    return make(spec, timestep, constraint_tolerance)
+
+
+def example_names() -> tuple[str, ...]:
+    """Return a name of every form the grammar reads: each family, order, kind of set and layer.
+
+    The names the tests run every integrator by (stability, invariants, force evaluations)
+    and the step programs stored as golden listings; every named splitting is among them.
+    """
+    names = ["rattle", "rattle4", "rattle6", "rattle4:triple-jump", "rattle+rescale", "rattle+rescale@10"]
+    names += ["rattle4+rescale", "rattle6+rescale", "rattle4:triple-jump+rescale@10"]
+    names += [
+        "alpha=0",
+        "alpha=0.1",
+        "alpha4=0",
+        "alpha4=0.01",
+        "alpha4:triple-jump=0",
+        "alpha4:triple-jump=0.01",
+    ]
+    names += ["alpha6=0", "energy", "energy4", "energy4:triple-jump", "split=0.25"]
+    names += [f"split:{name}" for name in SPLITTINGS] + [f"split:{name}+rescale" for name in SPLITTINGS]
+    names += ["split:me2+rescale@10", "verlet"]
+    return tuple(names)
 
 
 @dataclass(frozen=True)
