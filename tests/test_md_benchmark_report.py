@@ -7,11 +7,10 @@ import json
 import numpy as np
 import pytest
 
+from openmm_alphaprk.benchmarks.md_sweep.analysis import compare_dynamics
+from openmm_alphaprk.benchmarks.md_sweep.tables import scan_table
 from tools.reports.markdown import page_tables, read_blocks, replace_generated
-from tools.reports.md_benchmark import render_page
-from tools.reports.md_benchmark_analysis import compare_dynamics
-from tools.reports.md_benchmark_results import JSON_OUT, PAGE
-from tools.reports.md_benchmark_tables import scan_markdown, scan_table
+from tools.reports.md_benchmark import JSON_OUT, PAGE, render_page, scan_markdown
 
 
 def _row(system, integrator, step, status="ok", max_abs=0.1, dof=1000.0):

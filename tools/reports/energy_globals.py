@@ -1,6 +1,6 @@
 """What each variable of the energy mode's step programs means, by the stage of the step that owns it.
 
-Hand-written: the one place for these meanings. ``python -m tools.reports.energy_program``
+Hand-written: the one place for these meanings. ``python -m tools.reports``
 adds who writes each variable (read from the programs themselves) and writes the tables
 into docs/energy_program.md; tests/test_energy_program.py checks that every global and
 per-DOF variable of the order-2 and order-4 programs has exactly one entry here and that no

@@ -1,18 +1,14 @@
 r"""docs/energy_program.md: the energy mode's step programs as a state machine, and their variables.
 
-Run from the repository root::
-
-    python -m tools.reports.energy_program
-
-Writes the page's generated blocks: an outline of each program (order 2 and order 4), its
-blocks and the pieces (the ``_add_*`` methods) that fill them, with the globals each
-writes; and the table of every global (and per-DOF variable), grouped by the stage of the
-step that owns it, with its meaning (hand-written, :mod:`tools.reports.energy_globals`) and
-who writes it. Who writes it is read from the programs themselves: each program is built
-once more with its computations recorded, so that every computation OpenMM holds
-(``getComputationStep``) is known with the piece that added it; the Python side (setters,
-``check_context()``, ``step()``, ``reset_reference_energy()``) is read from the source of
-the integrator's classes.
+Part of ``python -m tools.reports``: the page's generated blocks: an outline of each
+program (order 2 and order 4), its blocks and the pieces (the ``_add_*`` methods) that
+fill them, with the globals each writes; and the table of every global (and per-DOF
+variable), grouped by the stage of the step that owns it, with its meaning (hand-written,
+:mod:`tools.reports.energy_globals`) and who writes it. Who writes it is read from the
+programs themselves: each program is built once more with its computations recorded, so
+that every computation OpenMM holds (``getComputationStep``) is known with the piece that
+added it; the Python side (setters, ``check_context()``, ``step()``,
+``reset_reference_energy()``) is read from the source of the integrator's classes.
 """
 
 from __future__ import annotations

@@ -1,7 +1,6 @@
-"""The generated blocks of docs/long_runs.md (and the README's long-run columns) from docs/data/long_runs/.
+"""The generated blocks of docs/long_runs.md from docs/data/long_runs/.
 
-``python -m tools.reports.long_runs`` rewrites them; ``--check`` only compares (exit 1 if a
-block differs from what the data renders).
+Part of ``python -m tools.reports``.
 """
 
 from __future__ import annotations

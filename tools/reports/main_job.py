@@ -5,8 +5,7 @@ repository root)::
 
     python -m tools.reports.main_job record alphaprk-compare-tip3p-2nm --seconds 65 70 68
     python -m tools.reports.main_job suite --tests 640 --seconds 400 410 420 --first-run 500
-    python -m tools.reports.main_job          # rewrite the generated blocks
-    python -m tools.reports.main_job --check  # exit 1 if a page is not what the data renders
+    python -m tools.reports                   # rewrite the generated blocks (--check: compare)
 
 ``record`` copies the run's ``comparison.json`` to ``docs/data/main_job/`` (run folders
 made relative) and writes ``docs/data/main_job/timing.json``: the wall-clock seconds of the
@@ -26,7 +25,7 @@ import sys
 from pathlib import Path
 
 from openmm_alphaprk.observables import drift_text
-from tools.reports.markdown import markdown_table, read_blocks, update_page
+from tools.reports.markdown import markdown_table
 from tools.reports.sources import DATA, ROOT, load
 
 COMPARISON = "main_job/comparison.json"
@@ -119,17 +118,6 @@ def record(run: Path, seconds: list[float], platform: str, command: str = "alpha
     (folder / "timing.json").write_text(json.dumps(timing, indent=2) + "\n", encoding="utf-8")
 
 
-def stale_pages() -> list[Path]:
-    """Return the pages whose blocks are not what the data renders now."""
-    wanted = blocks()
-    stale = []
-    for page in PAGES:
-        found = read_blocks(page.read_text(encoding="utf-8"))
-        if any(found.get(name) != text for name, text in wanted.items()):
-            stale.append(page)
-    return stale
-
-
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="action")
@@ -141,7 +129,6 @@ def main(argv: list[str] | None = None) -> int:
     suite.add_argument("--tests", type=int, required=True, help="tests in the default suite")
     suite.add_argument("--seconds", type=float, nargs="+", required=True, help="pytest's time, clean clones")
     suite.add_argument("--first-run", type=float, required=True, help="pytest's time on a first run")
-    parser.add_argument("--check", action="store_true", help="exit 1 if a page is stale")
     args = parser.parse_args(argv)
     if args.action == "record":
         record(args.run, args.seconds, args.platform)
@@ -149,18 +136,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.action == "suite":
         record_suite(args.tests, args.seconds, args.first_run)
         return 0
-    if args.check:
-        stale = stale_pages()
-        for page in stale:
-            print(f"{page.relative_to(ROOT)}: the main job's block is stale", file=sys.stderr)
-        return 1 if stale else 0
-    for page in PAGES:
-        missing = update_page(page, blocks())
-        if missing:
-            print(f"{page.relative_to(ROOT)} has no block {missing}", file=sys.stderr)
-            return 1
-    print("\n\n".join(blocks().values()))
-    return 0
+    parser.print_help()
+    return 2
 
 
 if __name__ == "__main__":

@@ -1,7 +1,6 @@
 """The generated blocks and figures of docs/physics.md from docs/data/physics/ (``bench physics report``).
 
-``python -m tools.reports.physics`` rewrites the blocks and the figures; ``--check`` only
-compares the blocks (exit 1 if one differs from what the data renders).
+Part of ``python -m tools.reports`` (``--figures`` draws the figures).
 """
 
 from __future__ import annotations

@@ -1,7 +1,6 @@
 """The generated blocks of docs/splitting.md from docs/data/splitting/ (the explicit α-family's survey).
 
-``python -m tools.reports.splitting`` rewrites them; ``--check`` only compares (exit 1 if a
-block differs from what the data renders). The data are written by
+Part of ``python -m tools.reports``. The data are written by
 ``tools/scripts/splitting_survey.py``.
 """
 

@@ -10,7 +10,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from tools.reports.validation_methods import FD_FLOOR
+from openmm_alphaprk.benchmarks.validation.methods import FD_FLOOR
 
 
 def _slope_label(label: str, order: float) -> str:

@@ -11,6 +11,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from openmm_alphaprk.observables import convergence_order as fitted_order
 from openmm_alphaprk.reference import (
     alpha_rattle4_step,
     integrate,
@@ -20,10 +21,10 @@ from openmm_alphaprk.reference import (
     water_cluster,
 )
 from openmm_alphaprk.reference.step import Array, ConstrainedProblem
-from tools.reports.validation_methods import (
+
+from .methods import (
     CONVERGENCE_METHODS,
     alpha_statistics,
-    fitted_order,
     local_orders,
     run_method,
 )

@@ -6,6 +6,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from openmm_alphaprk.observables import convergence_order as fitted_order
 from openmm_alphaprk.reference import (
     planar_pendulum,
     planar_pendulum_start,
@@ -13,12 +14,12 @@ from openmm_alphaprk.reference import (
     water_cluster,
 )
 from openmm_alphaprk.reference.step import Array, ConstrainedProblem
-from tools.reports.validation_methods import (
+
+from .methods import (
     ENERGY,
     ENERGY4,
     FD_FLOOR,
     Method,
-    fitted_order,
     fixed,
     run_method,
 )

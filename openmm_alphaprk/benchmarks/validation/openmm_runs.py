@@ -1,7 +1,7 @@
 """The OpenMM runs of the validation: α* on the 774-atom box and the long runs on the water cluster.
 
 Both go through the driver (``run_nve``) with its default settings; the long runs
-record their invariants with :class:`~.validation_reporter.InvariantReporter`.
+record their invariants with :class:`~.reporter.InvariantReporter`.
 """
 
 from __future__ import annotations
@@ -12,7 +12,8 @@ from pathlib import Path
 import numpy as np
 
 from openmm_alphaprk import observables
-from tools.reports.validation_reporter import InvariantReporter, long_run_entry, series
+
+from .reporter import InvariantReporter, long_run_entry, series
 
 #: Runs on ``tip3p-2nm``: name in the JSON, integrator, substeps per 2 fs. The last two cost
 #: what the energy modes cost (6 force evaluations per 2 fs), at a smaller step.

@@ -1,7 +1,8 @@
-"""The figures of docs/benchmarks.md (``docs/figures/benchmark_*.png``), from the sweep and the report.
+"""The MD benchmark's figures (``benchmark_*.png``), from the sweep's runs and the report.
 
-:func:`figures` draws them all; each ``figure_*`` function draws one and returns
-its path relative to ``docs/``. Matplotlib is imported when they are drawn.
+:func:`figures` draws them all into a folder; each ``figure_*`` function draws one and
+returns its path as ``FOLDER_NAME/FILE`` (the page beside the folder links it so).
+Matplotlib is imported when they are drawn.
 """
 
 from __future__ import annotations
@@ -9,10 +10,10 @@ from __future__ import annotations
 from pathlib import Path
 
 from openmm_alphaprk.observables import rms
-from tools.reports.md_benchmark_analysis import analyse_run
-from tools.reports.md_benchmark_results import (
+
+from .analysis import analyse_run
+from .results import (
     ENERGY_ROWS,
-    FIGURES,
     LABELS,
     REFERENCE,
     STABLE_MAX_PER_DOF,
@@ -22,17 +23,17 @@ from tools.reports.md_benchmark_results import (
 )
 
 
-def _save(fig, name: str, rect: tuple[float, float, float, float] = (0, 0, 1, 1)) -> str:
-    """Lay out, write and close a figure; return its path relative to docs/."""
+def _save(fig, folder: Path, name: str, rect: tuple[float, float, float, float] = (0, 0, 1, 1)) -> str:
+    """Lay out, write and close a figure; return ``FOLDER_NAME/name``."""
     import matplotlib.pyplot as plt
 
     fig.tight_layout(rect=rect)
-    fig.savefig(FIGURES / name, dpi=120)
+    fig.savefig(folder / name, dpi=120)
     plt.close(fig)
-    return f"figures/{name}"
+    return f"{folder.name}/{name}"
 
 
-def figure_energy(rows, systems: list[str]) -> str:
+def figure_energy(rows, systems: list[str], folder: Path) -> str:
     """Plot H − E_ref against time, one panel per system: RMS over 0.2 ps windows, log scale."""
     import matplotlib.pyplot as plt
 
@@ -57,10 +58,10 @@ def figure_energy(rows, systems: list[str]) -> str:
     axes[-1, 0].set_xlabel("time (ps)")
     handles, labels = axes[0, 0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="lower center", ncol=4, fontsize=7)
-    return _save(fig, "benchmark_energy.png", rect=(0, 0.07, 1, 1))
+    return _save(fig, folder, "benchmark_energy.png", rect=(0, 0.07, 1, 1))
 
 
-def figure_cost_accuracy(report: dict, systems: list[str]) -> str:
+def figure_cost_accuracy(report: dict, systems: list[str], folder: Path) -> str:
     """Plot the accuracy (RMS of H − E_ref) against the cost (time per ps), one panel per system."""
     import matplotlib.pyplot as plt
 
@@ -90,10 +91,10 @@ def figure_cost_accuracy(report: dict, systems: list[str]) -> str:
         ax.set_ylabel("RMS(H − E_ref) (kJ/mol)")
         ax.set_title(system)
     axes[0, 0].legend(fontsize=7)
-    return _save(fig, "benchmark_cost_accuracy.png")
+    return _save(fig, folder, "benchmark_cost_accuracy.png")
 
 
-def figure_dynamics(rows, systems: list[str]) -> str:
+def figure_dynamics(rows, systems: list[str], folder: Path) -> str:
     """Plot the O–O RDF and the water-H spectrum of every main run, the reference in black."""
     import matplotlib.pyplot as plt
 
@@ -116,10 +117,10 @@ def figure_dynamics(rows, systems: list[str]) -> str:
         axes[1, column].set_xlabel("wavenumber (cm⁻¹)")
         axes[1, column].set_ylabel("water-H VACF spectrum")
     axes[0, 0].legend(fontsize=6)
-    return _save(fig, "benchmark_dynamics.png")
+    return _save(fig, folder, "benchmark_dynamics.png")
 
 
-def figure_step_scan(scans: dict[str, dict]) -> str:
+def figure_step_scan(scans: dict[str, dict], folder: Path) -> str:
     """Plot max|H − E_ref| per DOF against the step of every scanned integrator; × marks a failed run."""
     import matplotlib.pyplot as plt
 
@@ -140,22 +141,23 @@ def figure_step_scan(scans: dict[str, dict]) -> str:
         ax.set_ylabel("max|H − E_ref| per DOF (kJ/mol); × = failed")
         ax.set_title(system)
     axes[0, 0].legend(fontsize=7)
-    return _save(fig, "benchmark_step_scan.png")
+    return _save(fig, folder, "benchmark_step_scan.png")
 
 
-def figures(rows, report: dict) -> list[str]:
-    """Write the figures; return their paths relative to docs/."""
+def figures(rows, report: dict, folder: Path) -> list[str]:
+    """Write the figures into ``folder``; return their paths as ``FOLDER_NAME/FILE``."""
     import matplotlib
 
     matplotlib.use("Agg")
-    FIGURES.mkdir(parents=True, exist_ok=True)
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
     systems = [s for s in SYSTEMS if report["energy"].get(s)]
     written = [
-        figure_energy(rows, systems),
-        figure_cost_accuracy(report, systems),
-        figure_dynamics(rows, systems),
+        figure_energy(rows, systems, folder),
+        figure_cost_accuracy(report, systems, folder),
+        figure_dynamics(rows, systems, folder),
     ]
     scans = {s: report["scan"][s] for s in SYSTEMS if report["scan"].get(s)}
     if scans:
-        written.append(figure_step_scan(scans))
+        written.append(figure_step_scan(scans, folder))
     return written

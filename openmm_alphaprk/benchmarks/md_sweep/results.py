@@ -1,21 +1,12 @@
-"""The MD benchmark sweep's results: where they are, which rows the report shows, the finished cells.
+"""The MD benchmark sweep's results: which rows the report shows, the finished cells.
 
-The sweep is ``docs/sweeps/md_benchmark.toml``; its cells are read from their run
-directories (:func:`load_rows`), so that a report can be made while the sweep
-still runs.
+The sweep's cells are read from their run directories (:func:`load_rows`), so that a
+report can be made while the sweep still runs.
 """
 
 from __future__ import annotations
 
-from pathlib import Path
-
-from openmm_alphaprk.runs.integrator_names import label as integrator_label
-
-ROOT = Path(__file__).resolve().parents[2]
-CONFIG = ROOT / "docs" / "sweeps" / "md_benchmark.toml"
-PAGE = ROOT / "docs" / "benchmarks.md"
-JSON_OUT = ROOT / "docs" / "data" / "benchmarks" / "benchmarks.json"
-FIGURES = ROOT / "docs" / "figures"
+from ...runs.integrator_names import label as integrator_label
 
 SYSTEMS = ("tip3p-2nm", "tip3p-3nm", "villin")
 #: Rows of the energy table, in order: (integrator, step in fs).

@@ -13,7 +13,8 @@ from pathlib import Path
 import numpy as np
 
 from openmm_alphaprk.observables import rms
-from tools.reports.md_benchmark_results import ENERGY_ROWS, run_label
+
+from .results import ENERGY_ROWS, run_label
 
 ANALYSIS_FILE = "md_benchmark_analysis.json"
 ANALYSIS_VERSION = 1
