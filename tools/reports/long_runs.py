@@ -76,28 +76,31 @@ def long_table(path: str, speed: bool = True) -> str:
 
 
 def energy_mode_windows(path: str) -> str:
-    """Compare the energy mode's windowed RMS with its α = 0 base's and RATTLE's over the same run."""
+    """Render the energy mode's windowed RMS against its α = 0 base's and RATTLE's over the same run."""
     data, _ = load(path)
     ((_, entry),) = data.items()
     rows = {row["integrator"]: row for row in entry["rows"]}
-    energy, base, rattle = rows.get("energy4"), rows.get("alpha4=0"), rows.get("rattle")
-    if not (energy and base and rattle):
-        return "The run has no energy4, alpha4=0 and RATTLE rows to compare."
+    energy, base, rattle = rows["energy4"], rows["alpha4=0"], rows["rattle"]
     e, b, r = (row["windows"]["rms"] for row in (energy, base, rattle))
     n = min(len(e), len(b), len(r))
     to_base = [x / y for x, y in zip(e[:n], b[:n])]
     to_rattle = [y / x for x, y in zip(e[:n], r[:n])]  # how many times below RATTLE's window
-    controller = energy.get("controller", {})
-    fell = controller.get("fraction_fallen_back")
-    fell_text = (
-        f"; {100 * fell:.1f} % of its steps fell back (ended above its energy tolerance)" if fell else ""
-    )
-    return (
-        f"`energy4` over {n} windows of {energy['windows']['window_ps']:g} ps: above `alpha4=0`'s RMS in "
-        f"{sum(x > 1 for x in to_base)} (at most {two(max(to_base))}× it); below 1/50 of RATTLE's RMS over "
-        f"the same window in {sum(x >= 50 for x in to_rattle)} (at worst 1/{times(min(to_rattle))}; over "
-        f"their runs 1/{times(rattle['rms_residual'] / energy['rms_residual'])}){fell_text}."
-    )
+    fell = energy.get("controller", {}).get("fraction_fallen_back")
+    cells = [
+        f"{n} × {energy['windows']['window_ps']:g} ps",
+        f"{sum(x > 1 for x in to_base)} (at most {two(max(to_base))}×)",
+        f"{sum(x >= 50 for x in to_rattle)} (at worst 1/{times(min(to_rattle))})",
+        f"1/{times(rattle['rms_residual'] / energy['rms_residual'])}",
+        "–" if not fell else f"{100 * fell:.1f} %",
+    ]
+    header = [
+        "`energy4`'s windows",
+        "above `alpha4=0`'s RMS",
+        "below 1/50 of RATTLE's",
+        "RMS over the run / RATTLE's",
+        "steps fallen back",
+    ]
+    return markdown_table(header, [cells])
 
 
 def precision_table() -> str:

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from tools.reports.long_runs import long_table
-from tools.reports.markdown import markdown_table
+from tools.reports.markdown import Column, markdown_table, table
 from tools.reports.numbers import sig, times, tolerance
 from tools.reports.sources import DATA, DOCS, Source, load
 
@@ -156,37 +156,53 @@ def compare(path: str) -> Comparison | None:
     )
 
 
+def _verdict(goal: float | None, met: bool) -> str:
+    return "" if goal is None else f" **{'met' if met else 'missed'}**"
+
+
 def survey_verdicts() -> str:
-    """One line per survey: the minimum-error member and its rescaling against RATTLE at h/2, goals stated."""
-    lines = []
+    """Render the table of each survey's minimum-error member against RATTLE at h/2, with its goals."""
+    rows = []
     for _, path in SURVEYS:
         found = compare(path) if (DATA / FOLDER / path).is_file() else None
-        if found is None:
-            continue
-        data = found.data
-        h = data["timestep_fs"]
-        goal = ENERGY_GOAL.get(h) if data["system"] in GOAL_SYSTEMS.get(h, ()) else None
-        line = (
-            f"- {_title(data, path)}: `split-me` {found.energy:.2f}× below RATTLE at h/2 in RMS(H − E_ref)"
-            + (f" (goal ≥ {goal:g}×: **{'met' if found.energy >= goal else 'missed'}**)" if goal else "")
-            + f"; position error {' / '.join(f'{r:.2f}' for r in found.positions)} × RATTLE at h/2's"
-        )
-        met = found.worst_position <= POSITION_GOAL
-        line += f" (goal ≤ {POSITION_GOAL:g}×: **{'met' if met else 'missed'}**)"
-        if found.rescaled_fraction is not None:
-            met = found.rescaled_fraction <= RESCALED_GOAL
-            line += (
-                f"; `split-me+rescale` RMS {sig(found.rescaled_rms)} kJ/mol, "
-                f"{sig(found.rescaled_fraction)} of RATTLE's (goal ≤ {RESCALED_GOAL:g}: "
-                f"**{'met' if met else 'missed'}**)"
-            )
-        lines.append(line + ".")
-    return "\n".join(lines)
+        if found is not None:
+            h = found.data["timestep_fs"]
+            goal = ENERGY_GOAL.get(h) if found.data["system"] in GOAL_SYSTEMS.get(h, ()) else None
+            rows.append((path, found, goal))
+    columns = [
+        Column("survey", lambda r: _title(r[1].data, r[0]).replace("**", "")),
+        Column(
+            "`split-me`: × below RATTLE at h/2 in RMS(H − E_ref)",
+            lambda r: (
+                f"{r[1].energy:.2f}"
+                + ("" if r[2] is None else f" (≥ {r[2]:g}:")
+                + _verdict(r[2], r[2] is not None and r[1].energy >= r[2])
+                + ("" if r[2] is None else ")")
+            ),
+        ),
+        Column(
+            f"position error / RATTLE at h/2's (≤ {POSITION_GOAL:g})",
+            lambda r: (
+                " / ".join(f"{v:.2f}" for v in r[1].positions)
+                + _verdict(POSITION_GOAL, r[1].worst_position <= POSITION_GOAL)
+            ),
+        ),
+        Column(
+            f"`split-me+rescale` RMS kJ/mol, and / RATTLE's (≤ {RESCALED_GOAL:g})",
+            lambda r: (
+                "–"
+                if r[1].rescaled_fraction is None
+                else f"{sig(r[1].rescaled_rms)}, {sig(r[1].rescaled_fraction)}"
+                + _verdict(RESCALED_GOAL, r[1].rescaled_fraction <= RESCALED_GOAL)
+            ),
+        ),
+    ]
+    return table(rows, columns)
 
 
 def per_picosecond() -> str:
-    """Compare `split-me` at 4 fs (hydrogens repartitioned) with RATTLE at 2 fs, 1 amu: equal cost per ps."""
-    lines = []
+    """Render `split-me` at 4 fs (hydrogens 3 amu) against RATTLE at 2 fs (1 amu): equal cost per ps."""
+    rows = []
     for system in ("tip3p-2nm", "villin", "dhfr"):
         four = next((p for _, p in SURVEYS if p.startswith(f"{system}_4fs")), None)
         two_fs = f"{system}_2fs.json"
@@ -194,16 +210,18 @@ def per_picosecond() -> str:
             continue
         me = _rows(load(FOLDER + four)[0]).get("split-me")
         rattle = _rows(load(FOLDER + two_fs)[0]).get("RATTLE at h")
-        if me is None or rattle is None:
-            continue
-        ratio = rattle["rms_residual"] / me["rms_residual"]
-        lines.append(
-            f"- {system}: `split-me` at 4 fs {sig(me['rms_residual'], 3)} kJ/mol against RATTLE at 2 fs "
-            f"{sig(rattle['rms_residual'], 3)} kJ/mol (the 2 fs survey's row, hydrogens not repartitioned): "
-            f"{times(ratio)}× "
-            f"{'lower' if ratio > 1 else 'higher'} — **{'met' if ratio > 1 else 'missed'}**."
-        )
-    return "\n".join(lines)
+        if me is not None and rattle is not None:
+            rows.append((system, me["rms_residual"], rattle["rms_residual"]))
+    columns = [
+        Column("system", lambda r: r[0]),
+        Column("`split-me` at 4 fs, kJ/mol", lambda r: sig(r[1], 3)),
+        Column("RATTLE at 2 fs (1 amu), kJ/mol", lambda r: sig(r[2], 3)),
+        Column(
+            "RATTLE's / `split-me`'s",
+            lambda r: f"{times(r[2] / r[1])} **{'met' if r[2] > r[1] else 'missed'}**",
+        ),
+    ]
+    return table(rows, columns)
 
 
 #: Surveys run twice from the same start: (the first run's file, the second's).
