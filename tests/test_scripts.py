@@ -1,6 +1,7 @@
-"""The scripts of tools/scripts, run on tiny inputs: each still runs against the package as it is.
+"""The measurement scripts, run on tiny inputs: each still runs against the package as it is.
 
-The scripts measure numbers that pages of docs/ quote (each names its page). Their full runs
+The scripts of tools/scripts and the experiments of ``openmm_alphaprk.benchmarks`` run as
+modules measure numbers that pages of docs/ quote (each names its page). Their full runs
 take minutes to hours or a GPU; here each runs once on the smallest input it accepts, so a
 change of the package that breaks a script fails a test instead of the next measurement.
 """
@@ -22,9 +23,10 @@ SCRIPTS = ROOT / "tools" / "scripts"
 
 
 def _run(script: str, *args: str, timeout: float = 120) -> str:
-    """Run ``python tools/scripts/SCRIPT ARGS`` from the repository root; return its output."""
+    """Run ``python tools/scripts/SCRIPT ARGS`` (or ``-m MODULE ARGS``) from the root; return the output."""
+    command = [str(SCRIPTS / script)] if script.endswith(".py") else ["-m", script]
     result = subprocess.run(
-        [sys.executable, str(SCRIPTS / script), *args],
+        [sys.executable, *command, *args],
         cwd=ROOT,
         capture_output=True,
         text=True,
@@ -58,7 +60,9 @@ def test_compositions_survey_runs(tmp_path):
 
 def test_energy_noise_runs(tmp_path):
     out = tmp_path / "noise.json"
-    _run("energy_noise.py", "--boxes", "1.5", "--platforms", "CPU", "--json", str(out))
+    _run(
+        "openmm_alphaprk.benchmarks.energy_noise", "--boxes", "1.5", "--platforms", "CPU", "--json", str(out)
+    )
     (result,) = json.loads(out.read_text(encoding="utf-8"))
     assert result["reference"] == "Reference" and 0 < result["std"]["CPU"] < 0.1
 
@@ -66,14 +70,16 @@ def test_energy_noise_runs(tmp_path):
 def test_pme_tolerance_runs_and_prints_its_table_again(tmp_path):
     out = tmp_path / "pme.json"
     args = ["--system", "tip3p-2nm", "--steps", "3", "--tolerances", "1e-4", "--timing-steps", "2"]
-    _run("pme_tolerance.py", *args, "--timing-rounds", "1", "--json", str(out))
+    _run("openmm_alphaprk.benchmarks.pme_tolerance", *args, "--timing-rounds", "1", "--json", str(out))
     assert json.loads(out.read_text(encoding="utf-8"))
-    assert "1e-04" in _run("pme_tolerance.py", "--table", str(out)).replace("0.0001", "1e-04")
+    assert "1e-04" in _run("openmm_alphaprk.benchmarks.pme_tolerance", "--table", str(out)).replace(
+        "0.0001", "1e-04"
+    )
 
 
 def test_reporter_cost_runs():
     text = _run(
-        "reporter_cost.py",
+        "openmm_alphaprk.benchmarks.reporter_cost",
         "--system",
         "water-cluster",
         "--rounds",
@@ -102,7 +108,7 @@ def test_rescale_sync_cost_runs(tmp_path):
         "--equilibration-steps",
         "2",
     ]
-    _run("rescale_sync_cost.py", *args, "--json", str(out))
+    _run("openmm_alphaprk.benchmarks.rescale_sync_cost", *args, "--json", str(out))
     (medians,) = json.loads(out.read_text(encoding="utf-8")).values()
     assert set(medians) == {"verlet", "rattle", "energy", "K", "K+moved", "K+P", "K+P+moved"}
 

@@ -1,6 +1,5 @@
-"""Reports: regenerate the numbers, tables and figures of docs/validation.md and docs/benchmarks.md.
+"""Reports: every generated block of the documentation's pages, from the data under docs/data/.
 
-Run them from the repository's root as ``python -m tools.reports.validation`` and
-``python -m tools.reports.md_benchmark``. They are not part of the installed package;
-they import it.
+``python -m tools.reports`` writes them (``--check`` compares, ``--figures`` also draws);
+see :mod:`tools.reports.__main__`. Not part of the installed package; it imports it.
 """

@@ -141,6 +141,53 @@ def _atoms(data: dict) -> str:
     return f"{atoms:,}"
 
 
+# ------------------------------------------------------------------ rescaling every N-th step
+RESCALE_INTERVAL = "platforms/rescale_interval_cpu.json"
+
+
+def rescale_interval_table() -> str:
+    """Render the cost and energy of ``rattle+rescale@N`` beside RATTLE's, from one run of each."""
+    data, found = load(RESCALE_INTERVAL)
+    cost = {box: entry["rows"] for box, entry in data["single_thread_cpu_time"].items()}
+    runs = data["energy"]["runs"]
+
+    def cost_cell(box: str):
+        def cell(run: dict) -> str:
+            row = pick(cost[box], run["name"])
+            ratio = row["ratio_to_rattle"]
+            return f"1 ({row['cpu_ms_per_step']:.3g} ms)" if run["name"] == "rattle" else f"{ratio:.2f}×"
+
+        return cell
+
+    def drift(run: dict) -> str:
+        text = f"{sig(run['drift_per_dof'])} ± {sig(run['drift_per_dof_standard_error'])}"
+        if run["at_rescaling_steps"]["samples"] < run["steps"]:
+            text += f" ({sig(run['at_rescaling_steps']['drift_per_dof'])} at the rescaling steps)"
+        return text
+
+    at = "at_rescaling_steps"
+    columns = [
+        Column("", lambda r: "RATTLE" if r["name"] == "rattle" else f"`{r['name']}`"),
+        *(Column(f"cost {box}", cost_cell(box)) for box in cost),
+        Column("RMS(H − E_ref) kJ/mol, every step", lambda r: sig(r["rms_residual"])),
+        Column("max \\|H − E_ref\\|", lambda r: sig(r["max_abs_residual"])),
+        Column(
+            "RMS at the rescaling steps",
+            lambda r: "—" if r["name"] == "rattle" else sig(r[at]["rms_residual"]),
+        ),
+        Column("drift kJ/mol/ns/DOF", drift),
+    ]
+    caption = provenance_line(
+        [found],
+        f"`python -m openmm_alphaprk.benchmarks.rescale_interval`, {data['platform']} platform, h = 2 fs; "
+        f"cost: single-thread process time per step, {data['rounds_single_thread_cpu_time']} interleaved "
+        f"rounds, median, ratio to RATTLE in the same run; energy: {data['energy']['box']} from its "
+        f"shipped start, {data['energy']['picoseconds']:g} ps, H read after every step",
+        "data/",
+    )
+    return table(runs, columns, caption)
+
+
 # ------------------------------------------------------------------ the order-2 energy mode
 ORDER2_SYSTEMS = "research/controller_robustness/energy_benchmark_systems.json"
 ORDER2_BUDGET = (
@@ -224,7 +271,7 @@ def noise_table() -> str:
     columns.append(Column("model σ, mixed", lambda n: two(energy_noise(n, "mixed"))))
     caption = provenance_line(
         [s for _, s in runs],
-        "`tools/scripts/energy_noise.py`, 10 states per box: σ (kJ/mol) of the "
+        "`python -m openmm_alphaprk.benchmarks.energy_noise`, 10 states per box: σ (kJ/mol) of the "
         "potential energy against double precision (CUDA double on the H100, Reference on the CPU "
         "machine, where OpenCL is pocl), and in brackets σ over the model's for its precision",
         "data/",
@@ -288,7 +335,7 @@ def sync_cost_table() -> str:
         ]
     caption = provenance_line(
         [s for _, s in runs],
-        "`tools/scripts/rescale_sync_cost.py`: time per step "
+        "`python -m openmm_alphaprk.benchmarks.rescale_sync_cost`: time per step "
         "against a RATTLE `CustomIntegrator` (H100: CUDA mixed; CPU: shared with other jobs)",
         "data/",
     )
@@ -406,8 +453,9 @@ def pme_table() -> str:
     ]
     caption = provenance_line(
         [found, villin_source],
-        f"`tools/scripts/pme_tolerance.py`: {data['steps']} steps of 2 fs per row from the shipped "
-        f"{data['system']} start (villin: RATTLE's cost alone), CPU platform, load average "
+        "`python -m openmm_alphaprk.benchmarks.pme_tolerance`: "
+        f"{data['steps']} steps of 2 fs per row from the shipped {data['system']} start (villin: "
+        "RATTLE's cost alone), CPU platform, load average "
         f"{' / '.join(f'{v:.1f}' for v in data['load'])} at its start; ms/step: the fastest of the "
         "interleaved rounds. † That day the order-4 composition was the triple jump: `alpha4=0` is today's "
         "`alpha4=0:triple-jump`, `energy4` the energy mode of that day on it",
@@ -517,7 +565,8 @@ def reporter_cost_table() -> str:
     ]
     caption = provenance_line(
         [found],
-        f"`python tools/scripts/reporter_cost.py --threads {s['threads']} --rounds {s['rounds']}`: "
+        "`python -m openmm_alphaprk.benchmarks.reporter_cost "
+        f"--threads {s['threads']} --rounds {s['rounds']}`: "
         f"{s['platform']} platform, `{s['system']}` ({s['atoms']:,} atoms), {s['timestep_fs']:g} fs, "
         f"{s['rounds']} interleaved rounds of {s['energy4_steps']} energy4 / {s['rattle_steps']} RATTLE "
         f"steps per row; one report timed alone (median of {s['repeats']:,}); load average "
@@ -590,6 +639,7 @@ def render() -> dict[Path, dict[str, str]]:
         DOCS / "integrators.md": {
             "which integrator": accuracy_table(GUIDE_NAMES, True, "data/"),
             "gpu in short": gpu_cost_table(),
+            "rescale interval": rescale_interval_table(),
         },
         DOCS / "energy_mode.md": {
             "what it achieves": accuracy_table(("rattle", "rattle4+rescale", "energy4"), True, "data/"),

@@ -13,7 +13,8 @@ RATTLE has no controller to report; its rows use a reporter that reads nothing, 
 asking ``Simulation`` for a report every step costs by itself (one step per ``integrator.step``
 call and a ``getState`` after each).
 
-    python tools/scripts/reporter_cost.py [--system tip3p-2nm] [--platform CPU] [--rounds 15] [--json FILE]
+    python -m openmm_alphaprk.benchmarks.reporter_cost [--system tip3p-2nm] [--platform CPU] \
+        [--rounds 15] [--json FILE]
 
 ``--json`` also writes every row (the steps/s of each round, their median, the ratio to no
 reporter, the time of one report) and the settings of the run, for docs/driver.md.

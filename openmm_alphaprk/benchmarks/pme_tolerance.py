@@ -1,6 +1,6 @@
 """RMS(H - E_ref) and cost of RATTLE, energy4 and alpha4=0 against PME's Ewald error tolerance.
 
-Usage: python tools/scripts/pme_tolerance.py [--steps 400] [--tolerances 5e-4 1e-4 5e-5 1e-5]
+Usage: python -m openmm_alphaprk.benchmarks.pme_tolerance [--steps 400] [--tolerances 5e-4 1e-4 5e-5 1e-5]
        [--system tip3p-3nm] [--integrators rattle energy4 alpha4=0] [--cost-only] [--json out.json]
 
 The numbers of docs/smooth_forces.md, "How tight a PME tolerance". For every tolerance

@@ -5,7 +5,7 @@ platform/precision given and on a reference (double precision); the standard
 deviation of the difference is the noise the energy mode's tolerance must sit above
 (:func:`openmm_alphaprk.platforms.energy_noise` models it). Example (CUDA)::
 
-    python tools/scripts/energy_noise.py --boxes 3 6 9 --reference CUDA:double \
+    python -m openmm_alphaprk.benchmarks.energy_noise --boxes 3 6 9 --reference CUDA:double \
         --platforms CUDA:single CUDA:mixed --json noise.json
 """
 

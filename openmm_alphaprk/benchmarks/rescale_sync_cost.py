@@ -15,7 +15,7 @@ device-to-host synchronisation on CUDA, OpenCL and HIP:
   velocity of the current velocities, so the rescaling keeps P exactly);
 - ``K+P+moved``: both.
 
-Usage: ``python tools/scripts/rescale_sync_cost.py --platform CUDA --box 3 6 9``.
+Usage: ``python -m openmm_alphaprk.benchmarks.rescale_sync_cost --platform CUDA --box 3 6 9``.
 """
 
 from __future__ import annotations

@@ -10,7 +10,8 @@ docs/data/platforms/rescale_interval_cpu.json. In one run, on one platform:
   (:func:`openmm_alphaprk.observables.energy_drift`) over every step and over the
   rescaling steps alone (every N-th), and the largest |H − E_ref|.
 
-Usage: ``python tools/scripts/rescale_interval.py --out docs/data/platforms/rescale_interval_cpu.json``
+Usage: ``python -m openmm_alphaprk.benchmarks.rescale_interval --out
+docs/data/platforms/rescale_interval_cpu.json``
 (defaults: CPU platform, tip3p-2nm and tip3p-3nm, N = 1, 10, 100, 5 rounds x 300 steps, 20 ps),
 then ``... --cpu-time-only --out <the same file>`` adds the step costs as single-thread CPU
 time (:func:`single_thread_cpu_times`), which a shared machine's load disturbs far less.
