@@ -28,7 +28,6 @@ __all__ = [
     "StateChangingForceWarning",
     "SystemSizeError",
     "TimestepUnitWarning",
-    "UncheckedContextWarning",
     "VelocityRescaleError",
 ]
 
@@ -93,7 +92,7 @@ class IncompatibleSystemError(InputError):
     ...     _ = system.addParticle(mass)
     >>> _ = system.addConstraint(0, 1, 0.3)
     >>> system.setVirtualSite(2, openmm.TwoParticleAverageSite(0, 1, 0.5, 0.5))
-    >>> integrator = AlphaRattleIntegrator(0.002, 0.1)
+    >>> integrator = AlphaRattleIntegrator(0.002, alpha=0.1)
     >>> context = openmm.Context(system, integrator, openmm.Platform.getPlatformByName("Reference"))
     >>> context.setPositions([[0, 0, 0], [0.3, 0, 0], [0.15, 0, 0]])
     >>> integrator.check_context(context)  # doctest: +ELLIPSIS
@@ -142,7 +141,7 @@ class MidpointConvergenceError(AlphaPRKError, RuntimeError):
     >>> bond = openmm.HarmonicBondForce()
     >>> _ = bond.addBond(0, 1, 0.1, 1e7)
     >>> _ = system.addForce(bond)
-    >>> integrator = AlphaRattleIntegrator(0.002, 0.5)
+    >>> integrator = AlphaRattleIntegrator(0.002, alpha=0.5)
     >>> context = openmm.Context(system, integrator, openmm.Platform.getPlatformByName("Reference"))
     >>> context.setPositions([[0, 0, 0], [0.11, 0, 0]])
     >>> context.setVelocities([[1, 2, 0], [0, 0, 3]])
@@ -222,40 +221,6 @@ class TimestepUnitWarning(AlphaPRKWarning):
     """
 
 
-class UncheckedContextWarning(AlphaPRKWarning):
-    """RATTLE + rescaling stepped before ``check_context`` saw its Context: it assumes no periodic box.
-
-    Without the Context the integrator cannot tell whether the System has a periodic box.
-    It then keeps the rigid rotation out of the scaling and sums the rigid-body motion
-    (momentum, angular momentum, inertia tensor) every step: right without a box, and
-    slower than it need be with one, where a step sums the kinetic energy alone once
-    ``integrator.check_context(context)`` has seen the Context (the host synchronisations
-    per step, measured: docs/integrators.md). Warned once per integrator.
-
-    Examples
-    --------
-    >>> import warnings
-    >>> import openmm
-    >>> from openmm_alphaprk import RattleRescaleIntegrator, UncheckedContextWarning
-    >>> from openmm_alphaprk.systems import prepare_system
-    >>> water = prepare_system("water-cluster")
-    >>> integrator = RattleRescaleIntegrator(0.002)
-    >>> context = openmm.Context(water.system, integrator, openmm.Platform.getPlatformByName("Reference"))
-    >>> context.setState(water.state)
-    >>> with warnings.catch_warnings(record=True) as caught:
-    ...     warnings.simplefilter("always")
-    ...     integrator.step(1)
-    >>> [warning.category.__name__ for warning in caught]
-    ['UncheckedContextWarning']
-    >>> integrator.check_context(context)  # the driver and benchmarks call it
-    >>> with warnings.catch_warnings(record=True) as caught:
-    ...     warnings.simplefilter("always")
-    ...     integrator.step(1)
-    >>> caught
-    []
-    """
-
-
 class EnergyHoldWarning(AlphaPRKWarning):
     """The energy mode could not hold some steps at E_ref and took them as its base's α = 0 steps.
 
@@ -274,14 +239,15 @@ class EnergyHoldWarning(AlphaPRKWarning):
     step an α = 0 step, RATTLE's:
 
     >>> import openmm, warnings
-    >>> from openmm_alphaprk import AlphaRattleEnergyIntegrator
+    >>> from openmm_alphaprk import AlphaRattleEnergyIntegrator, ControllerSettings
     >>> system = openmm.System()
     >>> for _ in range(2):
     ...     _ = system.addParticle(1.0)
     >>> bond = openmm.HarmonicBondForce()
     >>> _ = bond.addBond(0, 1, 0.1, 405000.0)
     >>> _ = system.addForce(bond)
-    >>> integrator = AlphaRattleEnergyIntegrator(0.002, alpha_bounds=(1.4, 1.5))
+    >>> settings = ControllerSettings(alpha_bounds=(1.4, 1.5))
+    >>> integrator = AlphaRattleEnergyIntegrator(0.002, controller=settings)
     >>> context = openmm.Context(system, integrator, openmm.Platform.getPlatformByName("Reference"))
     >>> context.setPositions([[0, 0, 0], [0.11, 0, 0]])
     >>> context.setVelocities([[0, 0, 0], [1, 0, 0]])

@@ -31,8 +31,8 @@ SEED = 2024
 PLATFORMS = ["Reference", "CPU"]
 FIXED = {
     "rattle": lambda: RattleIntegrator(H),
-    "alpha=1/6": lambda: AlphaRattleIntegrator(H, 1 / 6),
-    "alpha4=0": lambda: AlphaRattleIntegrator(H, 0.0, order=4),
+    "alpha=1/6": lambda: AlphaRattleIntegrator(H, alpha=1 / 6),
+    "alpha4=0": lambda: AlphaRattleIntegrator(H, alpha=0.0, order=4),
 }
 WITH_VERLET = {"verlet": lambda: mm.VerletIntegrator(H), **FIXED}
 
@@ -243,7 +243,7 @@ def test_check_context_decides_what_depends_on_the_platform():
         rattle.step(1)
     assert context.getStepCount() == 0
     # α ≠ 0 on any platform
-    alpha = AlphaRattleIntegrator(H, 0.5)
+    alpha = AlphaRattleIntegrator(H, alpha=0.5)
     context = mm.Context(system, alpha, reference)
     with pytest.raises(IncompatibleSystemError, match="alpha=0.5.*midpoint"):
         alpha.check_context(context)
@@ -273,7 +273,7 @@ def test_stepping_never_looks_for_the_context_in_the_garbage_collector(water_box
     monkeypatch.setattr(gc, "get_referrers", refuse)
     for integrator in (
         RattleIntegrator(H),
-        AlphaRattleIntegrator(H, 0.5),
+        AlphaRattleIntegrator(H, alpha=0.5),
         AlphaRattleEnergyIntegrator(H),
     ):
         context = make_context(water_box.system, integrator, water_box.positions, water_box.velocities)
@@ -284,7 +284,7 @@ def test_stepping_never_looks_for_the_context_in_the_garbage_collector(water_box
 
 
 def test_a_deserialized_plain_copy_counts_its_own_degrees_of_freedom(water_box):
-    original = AlphaRattleIntegrator(H, 0.5)
+    original = AlphaRattleIntegrator(H, alpha=0.5)
     copy = mm.XmlSerializer.deserialize(mm.XmlSerializer.serialize(original))  # a plain CustomIntegrator
     contexts = [
         make_context(water_box.system, i, water_box.positions, water_box.velocities) for i in (original, copy)
@@ -295,3 +295,55 @@ def test_a_deserialized_plain_copy_counts_its_own_degrees_of_freedom(water_box):
     assert copy.getGlobalVariableByName("ndof") == 3 * water_box.system.getNumParticles()
     assert np.array_equal(positions_of(contexts[0]), positions_of(contexts[1]))
     assert restore_integrator(copy).midpoint_iterations == original.midpoint_iterations
+
+
+# ----------------------------------------------------------- rescaling with no call but OpenMM's
+def _rescaled_run(system, state, checked: bool, steps: int = 20):
+    from openmm_alphaprk import RattleRescaleIntegrator
+
+    integrator = RattleRescaleIntegrator(H)
+    context = mm.Context(system, integrator, mm.Platform.getPlatformByName("CPU"))
+    context.setState(state)
+    if checked:
+        integrator.check_context(context)
+    integrator.step(steps)
+    return integrator, context
+
+
+@pytest.mark.parametrize("name, rotation", [("water-cluster", True), ("tip3p-2nm", False)])
+def test_rescaling_decides_the_rigid_motion_it_keeps_without_check_context(name, rotation):
+    """no periodic box: P and L kept; a box: P alone, the fast path, the same steps as after check_context."""
+    from openmm_alphaprk.systems import prepare_system
+
+    prepared = prepare_system(name)
+    plain, plain_context = _rescaled_run(prepared.system, prepared.state, checked=False)
+    checked, checked_context = _rescaled_run(prepared.system, prepared.state, checked=True)
+    assert (plain.removes_rotation, plain.removes_translation) == (rotation, True)
+    assert (checked.removes_rotation, checked.removes_translation) == (rotation, True)
+    # the same steps (the CPU platform's threads make two runs of one program differ by ~1e-8 nm)
+    np.testing.assert_allclose(positions_of(plain_context), positions_of(checked_context), rtol=0, atol=1e-6)
+    # the decision's own sums come once, with E_ref: per step the two programs sum alike
+    assert plain.host_syncs_per_step - checked.host_syncs_per_step <= 12 / 20
+    state = plain_context.getState(getEnergy=True)
+    residual = state.getKineticEnergy() + state.getPotentialEnergy() - plain.reference_energy
+    assert abs(residual) < plain.energy_tolerance
+
+
+def test_rescaling_one_particle_in_an_external_well_needs_no_check_context():
+    """a particle in a harmonic well (openmmtools' HarmonicOscillator): every velocity scaled, H held."""
+    from openmm_alphaprk import RattleRescaleIntegrator
+
+    system = mm.System()
+    system.addParticle(39.9)
+    well = mm.CustomExternalForce("0.5*100*(x^2 + y^2 + z^2)")
+    well.addParticle(0, [])
+    system.addForce(well)
+    integrator = RattleRescaleIntegrator(H)
+    context = mm.Context(system, integrator, mm.Platform.getPlatformByName("Reference"))
+    context.setPositions([[0.0, 0.0, 0.0]])  # at the minimum: no force at the state E_ref is taken from
+    context.setVelocities([[0.3, 0.1, 0.0]])
+    integrator.step(200)
+    assert not integrator.removes_translation
+    state = context.getState(getEnergy=True)
+    residual = state.getKineticEnergy() + state.getPotentialEnergy() - integrator.reference_energy
+    assert abs(residual) < integrator.energy_tolerance and integrator.rescalings == 200

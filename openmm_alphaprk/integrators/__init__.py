@@ -35,6 +35,7 @@ Modules:
 
 from .alpha_rattle import AlphaRattleIntegrator
 from .energy_mode import AlphaRattleEnergyIntegrator, EnergyHoldWarning
+from .energy_settings import ControllerSettings
 from .pieces import (
     IncompatibleSystemError,
     MidpointConvergenceError,
@@ -43,7 +44,7 @@ from .pieces import (
     check_context,
 )
 from .rattle import RattleIntegrator
-from .rescale import RattleRescaleIntegrator, UncheckedContextWarning, VelocityRescaleError
+from .rescale import RattleRescaleIntegrator, VelocityRescaleError
 from .restore import (
     PACKAGE_INTEGRATORS,
     counted_force_evaluations,
@@ -58,6 +59,7 @@ __all__ = [
     "force_evaluations_per_step",
     "AlphaRattleEnergyIntegrator",
     "AlphaRattleIntegrator",
+    "ControllerSettings",
     "EnergyHoldWarning",
     "IncompatibleSystemError",
     "MidpointConvergenceError",
@@ -66,7 +68,6 @@ __all__ = [
     "SplittingRattleIntegrator",
     "SystemSizeError",
     "TimestepUnitWarning",
-    "UncheckedContextWarning",
     "VelocityRescaleError",
     "check_context",
     "restore_integrator",
