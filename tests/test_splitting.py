@@ -3,7 +3,7 @@
 Theory on the NumPy reference (every named splitting's order, symplecticity with a contrast
 that must fail), then the OpenMM program: α = ¼ is RATTLE at h/2 step for step, the program
 is the reference step, its order, symplecticity and invariants on water in vacuum, its force
-evaluations, its restoration from XML and its stored listing.
+evaluations and its restoration from XML (its listing is stored with every program: tests/golden).
 """
 
 from __future__ import annotations
@@ -24,7 +24,6 @@ from conftest import (
     positions_of,
     velocities_of,
 )
-from test_step_programs_golden import describe
 
 from openmm_alphaprk import (
     RattleIntegrator,
@@ -49,28 +48,6 @@ from openmm_alphaprk.runs.integrator_names import label, make_integrator, parse_
 
 T_END = PENDULUM_T_END
 COUNTS = (16, 32, 64)
-GOLDEN = Path(__file__).parent / "golden" / "splitting_programs.txt"
-
-#: The programs whose listings are stored in tests/golden/splitting_programs.txt.
-PROGRAMS = {
-    "SplittingRattleIntegrator(0.002)": lambda: SplittingRattleIntegrator(0.002),
-    "SplittingRattleIntegrator(0.002, alpha=0.25)": lambda: SplittingRattleIntegrator(0.002, alpha=0.25),
-    "SplittingRattleIntegrator(0.002, splitting='bcss2')": lambda: SplittingRattleIntegrator(
-        0.002, splitting="bcss2"
-    ),
-    "SplittingRattleIntegrator(0.002, splitting='me3')": lambda: SplittingRattleIntegrator(
-        0.002, splitting="me3"
-    ),
-    "SplittingRattleIntegrator(0.002, splitting='bcss3')": lambda: SplittingRattleIntegrator(
-        0.002, splitting="bcss3"
-    ),
-    "RattleRescaleIntegrator(0.002, splitting='me2')": lambda: RattleRescaleIntegrator(
-        0.002, splitting="me2"
-    ),
-    "RattleRescaleIntegrator(0.002, splitting='me3', rescale_interval=10)": lambda: RattleRescaleIntegrator(
-        0.002, splitting="me3", rescale_interval=10
-    ),
-}
 
 
 def _error(pendulum, n: int, **options) -> float:
@@ -412,16 +389,3 @@ def test_the_survey_script_runs(tmp_path):
     assert [row["row"] for row in rows] == ["RATTLE at h/2", "split-me"]
     assert [row["evaluations"] for row in rows] == [2.0, 2.0]
     assert all(len(row["position_rms"]) == 1 for row in rows)
-
-
-# --------------------------------------------------------- stored programs
-def _descriptions() -> str:
-    return "".join(f"=== {name}\n{describe(make())}\n" for name, make in PROGRAMS.items())
-
-
-def test_every_splitting_program_is_the_stored_one():
-    """The listings in tests/golden/splitting_programs.txt (``ALPHAPRK_UPDATE_GOLDEN=1`` writes them)."""
-    text = _descriptions()
-    if os.environ.get("ALPHAPRK_UPDATE_GOLDEN"):
-        GOLDEN.write_text(text)
-    assert text == GOLDEN.read_text(), "a splitting's step program changed"

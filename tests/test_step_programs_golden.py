@@ -10,47 +10,22 @@ until the listing is written again on purpose::
 from __future__ import annotations
 
 import os
+from functools import partial
 from pathlib import Path
 
 import openmm as mm
 
-from openmm_alphaprk import (
-    AlphaRattleEnergyIntegrator,
-    AlphaRattleIntegrator,
-    RattleIntegrator,
-    RattleRescaleIntegrator,
-)
+from openmm_alphaprk import AlphaRattleIntegrator
+from openmm_alphaprk.runs.integrator_names import example_names, make_integrator
 
 GOLDEN = Path(__file__).parent / "golden" / "step_programs.txt"
 
+#: Every form the registry names (``example_names``: each family, order, set and layer, every
+#: named splitting), made by name at 2 fs, and the one option no name reaches (α on every stage).
 INTEGRATORS = {
-    "RattleIntegrator(0.002)": lambda: RattleIntegrator(0.002),
-    "RattleRescaleIntegrator(0.002)": lambda: RattleRescaleIntegrator(0.002),
-    "RattleRescaleIntegrator(0.002, order=4)": lambda: RattleRescaleIntegrator(0.002, order=4),
-    "AlphaRattleIntegrator(0.002, alpha=0)": lambda: AlphaRattleIntegrator(0.002, alpha=0.0),
-    "AlphaRattleIntegrator(0.002, alpha=0.1)": lambda: AlphaRattleIntegrator(0.002, alpha=0.1),
-    "AlphaRattleIntegrator(0.002, alpha=0, order=4)": lambda: AlphaRattleIntegrator(
-        0.002, alpha=0.0, order=4
-    ),
-    "AlphaRattleIntegrator(0.002, alpha=0.01, order=4)": lambda: AlphaRattleIntegrator(
-        0.002, alpha=0.01, order=4
-    ),
-    "AlphaRattleIntegrator(0.002, alpha=0, composition='triple-jump')": lambda: AlphaRattleIntegrator(
-        0.002, alpha=0.0, composition="triple-jump"
-    ),
-    "AlphaRattleIntegrator(0.002, alpha=0.01, composition='triple-jump')": lambda: AlphaRattleIntegrator(
-        0.002, alpha=0.01, composition="triple-jump"
-    ),
+    **{name: partial(make_integrator, name, 0.002) for name in example_names() if name != "verlet"},
     "AlphaRattleIntegrator(0.002, alpha=0.01, order=4, alpha_stages='all')": lambda: AlphaRattleIntegrator(
         0.002, alpha=0.01, order=4, alpha_stages="all"
-    ),
-    "AlphaRattleIntegrator(0.002, alpha=0, order=6)": lambda: AlphaRattleIntegrator(
-        0.002, alpha=0.0, order=6
-    ),
-    "AlphaRattleEnergyIntegrator(0.002)": lambda: AlphaRattleEnergyIntegrator(0.002),
-    "AlphaRattleEnergyIntegrator(0.002, order=4)": lambda: AlphaRattleEnergyIntegrator(0.002, order=4),
-    "AlphaRattleEnergyIntegrator(0.002, composition='triple-jump')": lambda: AlphaRattleEnergyIntegrator(
-        0.002, composition="triple-jump"
     ),
 }
 

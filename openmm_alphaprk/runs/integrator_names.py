@@ -489,7 +489,7 @@ def example_names() -> tuple[str, ...]:
     ]
     names += ["alpha6=0", "energy", "energy4", "energy4:triple-jump", "split=0.25"]
     names += [f"split:{name}" for name in SPLITTINGS] + [f"split:{name}+rescale" for name in SPLITTINGS]
-    names += ["split:me2+rescale@10", "verlet"]
+    names += ["split:me3+rescale@10", "verlet"]
     return tuple(names)
 
 
