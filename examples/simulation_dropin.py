@@ -36,7 +36,7 @@ h = 2 * unit.femtoseconds
 INTEGRATORS = {  # the command-line names of each (alphaprk run NAME)
     "rattle4+rescale": lambda: RattleRescaleIntegrator(h, order=4),  # recommended
     "rattle+rescale": lambda: RattleRescaleIntegrator(h),  # RATTLE's cost
-    "alpha4=0": lambda: AlphaRattleIntegrator(h, 0.0, order=4),  # symplectic, no rescaling
+    "alpha4=0": lambda: AlphaRattleIntegrator(h, alpha=0.0, order=4),  # symplectic, no rescaling
     "energy4": lambda: AlphaRattleEnergyIntegrator(h, order=4),  # the energy mode, under study
 }
 

@@ -23,6 +23,7 @@ from platform_options import configured, platform_and_properties, slow, with_pre
 from openmm_alphaprk import (
     AlphaRattleEnergyIntegrator,
     AlphaRattleIntegrator,
+    ControllerSettings,
     IncompatibleSystemError,
     RattleIntegrator,
     RattleRescaleIntegrator,
@@ -39,14 +40,16 @@ INTEGRATORS = {
     # rescaled at steps 2 and 4 of the five: both blocks, the plain step's and the rescaling's
     "rattle+rescale@2": lambda: RattleRescaleIntegrator(H, rescale_interval=2),
     "rattle4+rescale@2": lambda: RattleRescaleIntegrator(H, order=4, rescale_interval=2),
-    "alpha=0": lambda: AlphaRattleIntegrator(H, 0.0),
-    "alpha=1/6": lambda: AlphaRattleIntegrator(H, 1 / 6),
-    "alpha=1/2": lambda: AlphaRattleIntegrator(H, 0.5),
-    "alpha4=0": lambda: AlphaRattleIntegrator(H, 0.0, order=4),
-    "alpha4=0.05": lambda: AlphaRattleIntegrator(H, 0.05, order=4),
-    "alpha4=0.05:triple-jump": lambda: AlphaRattleIntegrator(H, 0.05, composition="triple-jump"),
-    "alpha4=0.05, alpha on every stage": lambda: AlphaRattleIntegrator(H, 0.05, order=4, alpha_stages="all"),
-    "alpha6=0": lambda: AlphaRattleIntegrator(H, 0.0, order=6),
+    "alpha=0": lambda: AlphaRattleIntegrator(H, alpha=0.0),
+    "alpha=1/6": lambda: AlphaRattleIntegrator(H, alpha=1 / 6),
+    "alpha=1/2": lambda: AlphaRattleIntegrator(H, alpha=0.5),
+    "alpha4=0": lambda: AlphaRattleIntegrator(H, alpha=0.0, order=4),
+    "alpha4=0.05": lambda: AlphaRattleIntegrator(H, alpha=0.05, order=4),
+    "alpha4=0.05:triple-jump": lambda: AlphaRattleIntegrator(H, alpha=0.05, composition="triple-jump"),
+    "alpha4=0.05, alpha on every stage": lambda: AlphaRattleIntegrator(
+        H, alpha=0.05, order=4, alpha_stages="all"
+    ),
+    "alpha6=0": lambda: AlphaRattleIntegrator(H, alpha=0.0, order=6),
     # the explicit α-family: sub-steps of straight-line code, every force after its constraint step
     "split=1/4": lambda: SplittingRattleIntegrator(H, alpha=0.25),
     "split-me": lambda: SplittingRattleIntegrator(H),
@@ -58,21 +61,21 @@ INTEGRATORS = {
     # trial meets: a step that missed would choose between its α trial and the α = 0 step by
     # energies within the platform's noise; that choice is tested below)
     "energy (pinned)": lambda: AlphaRattleEnergyIntegrator(
-        H, alpha_bounds=(0.5, 0.5 + 1e-9), energy_tolerance=1e9, midpoint_tolerance=1e-10
+        H,
+        midpoint_tolerance=1e-10,
+        controller=ControllerSettings(alpha_bounds=(0.5, 0.5 + 1e-9), energy_tolerance=1e9),
     ),
     "energy4 (pinned)": lambda: AlphaRattleEnergyIntegrator(
         H,
         order=4,
-        alpha_bounds=(0.05, 0.05 + 1e-9),
-        energy_tolerance=1e9,
         midpoint_tolerance=1e-10,
+        controller=ControllerSettings(alpha_bounds=(0.05, 0.05 + 1e-9), energy_tolerance=1e9),
     ),
     "energy4:triple-jump (pinned)": lambda: AlphaRattleEnergyIntegrator(
         H,
         composition="triple-jump",
-        alpha_bounds=(0.05, 0.05 + 1e-9),
-        energy_tolerance=1e9,
         midpoint_tolerance=1e-10,
+        controller=ControllerSettings(alpha_bounds=(0.05, 0.05 + 1e-9), energy_tolerance=1e9),
     ),
 }
 #: Largest |x(platform) − x(Reference)| after 5 steps, nm. Double: the issue's bound;
@@ -139,11 +142,13 @@ def test_steps_the_alpha_trials_cannot_hold_continue_as_on_reference(water_box, 
             H,
             order=4,
             composition="triple-jump",
-            max_trials=2,
-            alpha_bounds=(0.2, 0.4),
-            alpha_probe=0.2,
-            max_alpha_change=0.2,
-            energy_tolerance=1e-9,
+            controller=ControllerSettings(
+                max_trials=2,
+                alpha_bounds=(0.2, 0.4),
+                alpha_probe=0.2,
+                max_alpha_change=0.2,
+                energy_tolerance=1e-9,
+            ),
         )
         context = _context(water_box.system, integrator, platform, water_box.positions, water_box.velocities)
         with warnings.catch_warnings():
@@ -153,7 +158,7 @@ def test_steps_the_alpha_trials_cannot_hold_continue_as_on_reference(water_box, 
                 assert integrator.getGlobalVariableByName("zero_trial") == 1, platform
                 assert integrator.alpha == 0
         results.append(positions_of(context))
-    triple_jump = AlphaRattleIntegrator(H, 0.0, composition="triple-jump")
+    triple_jump = AlphaRattleIntegrator(H, alpha=0.0, composition="triple-jump")
     context = _context(water_box.system, triple_jump, "Reference", water_box.positions, water_box.velocities)
     triple_jump.step(3)
     results.append(positions_of(context))
@@ -170,7 +175,7 @@ def test_alpha_zero_is_rattle_on_the_platform(water_box, spec):
     not repeat a run bitwise (two RATTLE runs differ by ~1e-8 nm after 10 steps).
     """
     runs = []
-    for integrator in (RattleIntegrator(H), RattleIntegrator(H), AlphaRattleIntegrator(H, 0.0)):
+    for integrator in (RattleIntegrator(H), RattleIntegrator(H), AlphaRattleIntegrator(H, alpha=0.0)):
         context = _context(water_box.system, integrator, spec, water_box.positions, water_box.velocities)
         integrator.step(10)
         runs.append((positions_of(context), velocities_of(context)))
@@ -491,7 +496,7 @@ def test_tip4pew_with_rattle_and_triple_jump_conserves_energy_like_verlet(tip4pe
     verlet, _ = _energy_trace(system, mm.VerletIntegrator(H), spec, x0, v0, steps, every)
     rattle, rattle_context = _energy_trace(system, RattleIntegrator(H), spec, x0, v0, steps, every)
     triple, _ = _energy_trace(
-        system, AlphaRattleIntegrator(H, 0.0, composition="triple-jump"), spec, x0, v0, steps, every
+        system, AlphaRattleIntegrator(H, alpha=0.0, composition="triple-jump"), spec, x0, v0, steps, every
     )
     (verlet_rms, _), (rattle_rms, rattle_drift) = _rms_and_drift(verlet, every), _rms_and_drift(rattle, every)
     triple_rms, triple_drift = _rms_and_drift(triple, every)
@@ -545,8 +550,8 @@ def test_tip4pew_rattle_follows_verlet_step_for_step(tip4pew_box, spec):
 def test_virtual_sites_refused_where_a_step_cannot_be_right(tip4pew_box, spec):
     system, x0, v0 = tip4pew_box
     for integrator in (
-        AlphaRattleIntegrator(H, 0.5),
-        AlphaRattleIntegrator(H, 0.05, order=4),
+        AlphaRattleIntegrator(H, alpha=0.5),
+        AlphaRattleIntegrator(H, alpha=0.05, order=4),
         AlphaRattleEnergyIntegrator(H, order=4),
     ):
         context = _context(system, integrator, spec, x0, v0)
@@ -557,7 +562,7 @@ def test_virtual_sites_refused_where_a_step_cannot_be_right(tip4pew_box, spec):
         with pytest.raises(IncompatibleSystemError, match="midpoint"):
             integrator.check_context(context)  # with the platform seen: before any step
     # α = 0 runs once check_context has seen the platform, and α set later is refused before the next step
-    integrator = AlphaRattleIntegrator(H, 0.0)
+    integrator = AlphaRattleIntegrator(H, alpha=0.0)
     context = _context(system, integrator, spec, x0, v0)
     before = velocities_of(context)
     with pytest.raises(IncompatibleSystemError, match=r"call integrator\.check_context\(context\)"):

@@ -73,7 +73,7 @@ def _openmm_order(chosen: Composition, counts: tuple[int, int]) -> float:
     errors = []
     for n in counts:
         h = t_end / n * unit.picoseconds
-        integrator = AlphaRattleIntegrator(h, 0.0, composition=chosen, constraint_tolerance=1e-13)
+        integrator = AlphaRattleIntegrator(h, alpha=0.0, composition=chosen, constraint_tolerance=1e-13)
         ctx = make_context(to_openmm_system(problem), integrator, x0.reshape(-1, 3), v0.reshape(-1, 3))
         integrator.step(n)
         errors.append(np.linalg.norm(positions_of(ctx).ravel() - x_ref))
@@ -94,7 +94,7 @@ def test_openmm_program_is_the_reference_step_with_alpha_on_any_stages(stages, a
     problem, x0, v0 = water_cluster(3)
     integrator = AlphaRattleIntegrator(
         0.002,
-        alpha,
+        alpha=alpha,
         composition=chosen,
         constraint_tolerance=1e-12,
         midpoint_tolerance=1e-14,
@@ -146,7 +146,7 @@ def test_the_default_energy_mode_holds_h_on_a_water_box_at_the_measured_cost(
         return rms(energy_residuals(context, integrator, 40).residuals)
 
     rattle = rms(rattle_residuals_on_the_water_box[:40])  # the first 40 steps of the session's RATTLE run
-    composed = energy_rms(AlphaRattleIntegrator(0.002, 0.0, order=4))
+    composed = energy_rms(AlphaRattleIntegrator(0.002, alpha=0.0, order=4))
     integrator = AlphaRattleEnergyIntegrator(0.002, order=4)
     held = energy_rms(integrator)
     totals = integrator.controller_totals()

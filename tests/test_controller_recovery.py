@@ -26,7 +26,13 @@ from conftest import (
     velocities_of,
 )
 
-from openmm_alphaprk import AlphaRattleEnergyIntegrator, AlphaRattleIntegrator, RattleIntegrator, make_smooth
+from openmm_alphaprk import (
+    AlphaRattleEnergyIntegrator,
+    AlphaRattleIntegrator,
+    ControllerSettings,
+    RattleIntegrator,
+    make_smooth,
+)
 from openmm_alphaprk.integrators.energy_mode import EnergyHoldWarning
 from openmm_alphaprk.observables import energy_residuals, rms
 
@@ -38,7 +44,9 @@ DEAD_SLOPE_SCALE = 5.9e8
 def _energy_mode(order: int) -> AlphaRattleIntegrator:
     """The energy mode at order 2, or on the triple jump (order 4), whose controller these cases measured."""
     composition = {"composition": "triple-jump"} if order == 4 else {}
-    return AlphaRattleEnergyIntegrator(2 * unit.femtosecond, energy_tolerance=0.01, **composition)
+    return AlphaRattleEnergyIntegrator(
+        2 * unit.femtosecond, **composition, controller=ControllerSettings(energy_tolerance=0.01)
+    )
 
 
 def test_inflated_slope_scale_recovers_within_a_dozen_steps(water_box):
@@ -380,10 +388,9 @@ def test_a_step_whose_trials_did_worse_than_alpha_zero_is_the_alpha_zero_step(so
     integrator = AlphaRattleEnergyIntegrator(
         2 * unit.femtosecond,
         composition="triple-jump",
-        max_trials=2,
-        alpha_probe=0.2,
-        max_alpha_change=0.2,
-        energy_tolerance=1e-9,
+        controller=ControllerSettings(
+            max_trials=2, alpha_probe=0.2, max_alpha_change=0.2, energy_tolerance=1e-9
+        ),
     )
     context = make_context(system, integrator, positions, velocities, REFERENCE)
     with warnings.catch_warnings(record=True) as caught:
@@ -445,7 +452,7 @@ def test_a_midpoint_that_diverges_makes_the_step_the_alpha_zero_step_not_an_erro
     """
     omega = 1.8 / 0.002
     system, positions, velocities = _stiff_bond(0.5 * omega**2)  # reduced mass 1/2
-    integrator = AlphaRattleEnergyIntegrator(0.002, alpha_bounds=(1.4, 1.5))
+    integrator = AlphaRattleEnergyIntegrator(0.002, controller=ControllerSettings(alpha_bounds=(1.4, 1.5)))
     context = make_context(system, integrator, positions, velocities, REFERENCE)
     with pytest.warns(EnergyHoldWarning, match="midpoint iteration failed"):
         integrator.step(20)
@@ -470,7 +477,7 @@ def test_energy4_at_4fs_on_villin_runs_as_its_alpha_zero_base_does_and_warns():
 
     villin = prepare_system("villin")
     h = 4 * unit.femtoseconds
-    base = AlphaRattleIntegrator(h, 0.0, order=4)
+    base = AlphaRattleIntegrator(h, alpha=0.0, order=4)
     base_context = mm.Context(villin.system, base, CPU)
     base_context.setState(villin.state)
     base.step(VILLIN_4FS_STEPS)  # the premise: the base runs

@@ -8,7 +8,12 @@ import openmm.unit as unit
 import pytest
 from conftest import REFERENCE, constraint_errors, make_context, positions_of, total_energy, velocities_of
 
-from openmm_alphaprk import AlphaRattleEnergyIntegrator, AlphaRattleIntegrator, RattleIntegrator
+from openmm_alphaprk import (
+    AlphaRattleEnergyIntegrator,
+    AlphaRattleIntegrator,
+    ControllerSettings,
+    RattleIntegrator,
+)
 from openmm_alphaprk.reference import angular_momentum, to_openmm_system, water_cluster
 from openmm_alphaprk.runs.reporters import (
     COLUMNS,
@@ -82,7 +87,9 @@ def test_energy_mode_on_a_water_cluster_holds_energy_and_keeps_momenta():
     _, ctx = _cluster_context(rattle)
     rattle_residuals, _, _ = _residuals(ctx, rattle, 300, total_energy(ctx))
 
-    integrator = AlphaRattleEnergyIntegrator(0.002, midpoint_tolerance=1e-12, energy_tolerance=0.01, **tight)
+    integrator = AlphaRattleEnergyIntegrator(
+        0.002, midpoint_tolerance=1e-12, **tight, controller=ControllerSettings(energy_tolerance=0.01)
+    )
     problem, ctx = _cluster_context(integrator)
     e_ref = total_energy(ctx)
     x, v = positions_of(ctx).ravel(), velocities_of(ctx).ravel()
@@ -126,7 +133,7 @@ def test_energy_mode_on_a_water_box_beats_rattle_and_keeps_constraints(
     n = 60
     rattle_rms = np.sqrt(np.mean(rattle_residuals_on_the_water_box[:n] ** 2))  # the session's RATTLE run
 
-    integrator = AlphaRattleEnergyIntegrator(0.002, energy_tolerance=0.01)
+    integrator = AlphaRattleEnergyIntegrator(0.002, controller=ControllerSettings(energy_tolerance=0.01))
     ctx = make_context(water_box.system, integrator, water_box.positions, water_box.velocities)
     measured, claimed, fell_back = _residuals(ctx, integrator, n, total_energy(ctx))
     tolerance = integrator.energy_tolerance.value_in_unit(unit.kilojoules_per_mole)
@@ -149,7 +156,7 @@ def test_controller_recovers_from_a_bad_starting_alpha():
     settings = {
         "constraint_tolerance": 1e-12,
         "midpoint_tolerance": 1e-10,
-        "energy_tolerance": 0.01,
+        "controller": ControllerSettings(energy_tolerance=0.01),
     }
     normal = AlphaRattleEnergyIntegrator(0.002, **settings)
     _, ctx = _cluster_context(normal)
@@ -279,20 +286,63 @@ def test_controller_reporter_writes_every_step_as_it_goes(water_box, tmp_path):
         ({"max_trials": 0}, ValueError, "positive integer"),
         # measured: one trial per step kept α at 0 at both orders (RATTLE / triple jump at a higher cost)
         ({"max_trials": 1}, ValueError, "never moves alpha.*max_trials >= 2"),
-        ({"order": 4, "max_trials": 1}, ValueError, "never moves alpha.*max_trials >= 2"),
+        ({"max_trials": 2.5}, ValueError, "positive integer"),
         ({"max_alpha_change": 0}, ValueError, "max_alpha_change must be positive"),
         ({"alpha_probe": -0.1}, ValueError, "alpha_probe must be positive"),
         ({"slope_damping": -0.5}, ValueError, "slope_damping must be >= 0"),
-        ({"order": 4, "alpha_bounds": (0.3, 0.1)}, ValueError, "low < high"),
     ],
 )
 def test_bad_energy_mode_settings_give_clear_errors(kwargs, error, match):
+    """The controller's settings are checked when made, before any integrator."""
     with pytest.raises(error, match=match):
-        AlphaRattleEnergyIntegrator(0.002, **kwargs)
+        ControllerSettings(**kwargs)
+
+
+def test_the_controller_settings_take_the_orders_defaults_where_left_unset():
+    """A field left None is the order's default (CONTROLLER_DEFAULTS, scaled on a composition)."""
+    from openmm_alphaprk.integrators.compositions import composition
+    from openmm_alphaprk.integrators.energy_settings import CONTROLLER_DEFAULTS, alpha_scale_of
+
+    def globals_of(integrator):
+        return {
+            name: integrator.getGlobalVariableByName(name)
+            for name in (
+                "alpha_min",
+                "alpha_max",
+                "max_trials",
+                "max_alpha_change",
+                "alpha_probe",
+                "slope_damping",
+            )
+        }
+
+    for order, scale in ((2, 1.0), (4, alpha_scale_of(composition("suzuki5")))):
+        defaults = CONTROLLER_DEFAULTS[order]
+        expected = {
+            "alpha_min": scale * defaults.alpha_bounds[0],
+            "alpha_max": scale * defaults.alpha_bounds[1],
+            "max_trials": defaults.max_trials,
+            "max_alpha_change": scale * defaults.max_alpha_change,
+            "alpha_probe": scale * defaults.alpha_probe,
+            "slope_damping": 0.5,
+        }
+        for controller in (None, ControllerSettings()):
+            assert globals_of(AlphaRattleEnergyIntegrator(0.002, order=order, controller=controller)) == (
+                pytest.approx(expected)
+            )
+        partial = AlphaRattleEnergyIntegrator(0.002, order=order, controller=ControllerSettings(max_trials=6))
+        assert globals_of(partial) == pytest.approx({**expected, "max_trials": 6})
+    with pytest.raises(ValueError, match="low < high"):
+        ControllerSettings(alpha_bounds=(0.3, 0.1))
+    with pytest.raises(TypeError, match="ControllerSettings"):
+        AlphaRattleEnergyIntegrator(0.002, controller={"max_trials": 3})
+    with pytest.raises(TypeError, match="alpha_bounds"):  # a controller option is not a keyword of its own
+        AlphaRattleEnergyIntegrator(0.002, alpha_bounds=(-0.1, 0.1))
 
 
 def test_energy_mode_settings_are_checked_later_too_and_need_the_mode():
-    integrator = AlphaRattleEnergyIntegrator(0.002, energy_tolerance=0.02 * unit.kilojoule_per_mole)
+    tolerance = ControllerSettings(energy_tolerance=0.02 * unit.kilojoule_per_mole)
+    integrator = AlphaRattleEnergyIntegrator(0.002, controller=tolerance)
     assert integrator.energy_tolerance == 0.02 * unit.kilojoules_per_mole
     with pytest.raises(ValueError, match="low < high"):
         integrator.alpha_bounds = (0.5, 0.1)
@@ -303,9 +353,9 @@ def test_energy_mode_settings_are_checked_later_too_and_need_the_mode():
     assert repr(integrator) == "AlphaRattleEnergyIntegrator(timestep=0.002 ps)"
     fixed = AlphaRattleIntegrator(0.002, alpha=0.5)
     assert not fixed.energy_mode
-    with pytest.raises(AttributeError, match=r"AlphaRattleEnergyIntegrator\(timestep"):
+    with pytest.raises(AttributeError, match="reset_reference_energy"):
         fixed.reset_reference_energy()
-    with pytest.raises(AttributeError, match=r"AlphaRattleEnergyIntegrator\(timestep"):
+    with pytest.raises(AttributeError, match="energy_residual"):
         _ = fixed.energy_residual
 
 
@@ -317,7 +367,8 @@ def test_the_energy_mode_is_its_own_class_and_survives_serialization_and_copies(
 
     energy = AlphaRattleEnergyIntegrator(0.002, composition="triple-jump")
     fixed = AlphaRattleIntegrator(0.002, alpha=0.1)
-    assert type(energy) is AlphaRattleEnergyIntegrator and isinstance(energy, AlphaRattleIntegrator)
+    # siblings on a private base: the energy mode is not a fixed α
+    assert type(energy) is AlphaRattleEnergyIntegrator and not isinstance(energy, AlphaRattleIntegrator)
     assert type(fixed) is AlphaRattleIntegrator
     for original in (energy, fixed):
         restored = restore_integrator(mm.XmlSerializer.deserialize(mm.XmlSerializer.serialize(original)))
@@ -326,16 +377,18 @@ def test_the_energy_mode_is_its_own_class_and_survives_serialization_and_copies(
         assert type(copy.deepcopy(original)) is type(original)
     with pytest.raises(TypeError, match="alpha"):
         AlphaRattleEnergyIntegrator(0.002, alpha=0.1)
-    with pytest.raises(ValueError, match=r"takes no alpha.*AlphaRattleEnergyIntegrator\(timestep, order=4\)"):
+    with pytest.raises(TypeError, match="positional"):  # every option after the timestep is a keyword
         AlphaRattleEnergyIntegrator(0.002, "energy")
 
 
 def test_the_energy_mode_asked_of_the_fixed_alpha_class_names_its_class():
-    """``AlphaRattleIntegrator(h, "energy")`` (the former factory) refuses with the replacement."""
+    """``AlphaRattleIntegrator(h, alpha="energy")`` (the former factory) refuses with the replacement."""
     with pytest.raises(
         ValueError, match=r"its own class: use AlphaRattleEnergyIntegrator\(timestep, order=4"
     ):
-        AlphaRattleIntegrator(0.002, "energy")
+        AlphaRattleIntegrator(0.002, alpha="energy")
+    with pytest.raises(TypeError, match="positional"):  # not alpha: options after the timestep are keywords
+        AlphaRattleIntegrator(0.002, 0.1)
     with pytest.raises(ValueError, match=r"AlphaRattleEnergyIntegrator"):
         AlphaRattleIntegrator(0.002, alpha="energy", order=4)
     with pytest.raises(ValueError, match="alpha must be a number"):
@@ -349,8 +402,7 @@ def test_energy_mode_options_with_a_fixed_alpha_are_refused():
     with pytest.raises(TypeError, match="energy_tolerance"):
         AlphaRattleIntegrator(0.002, energy_tolerance=0.1, max_trials=5)
     fixed = AlphaRattleIntegrator(0.002, alpha=0.1)
-    with pytest.raises(AttributeError, match="AlphaRattleEnergyIntegrator"):
-        fixed.energy_tolerance = 0.05  # would be kept on the Python object and do nothing
+    assert not hasattr(fixed, "energy_tolerance")  # the fixed α has none of the energy mode's API
 
 
 def test_the_class_diagram_has_at_most_three_levels():

@@ -96,7 +96,9 @@ def test_alpha_zero_is_rattle_step_for_step(water_box):
 def test_openmm_agrees_with_numpy_reference_step_for_step(alpha, make_problem, position_tolerance):
     problem, x0, v0 = make_problem(seed=2)
     system = to_openmm_system(problem)
-    integrator = AlphaRattleIntegrator(0.002, alpha, constraint_tolerance=1e-12, midpoint_tolerance=1e-14)
+    integrator = AlphaRattleIntegrator(
+        0.002, alpha=alpha, constraint_tolerance=1e-12, midpoint_tolerance=1e-14
+    )
     ctx = make_context(system, integrator, x0.reshape(-1, 3), v0.reshape(-1, 3))
     x, v = x0, v0
     worst = 0.0
@@ -129,9 +131,9 @@ def test_openmm_symplectic_at_default_tolerance_and_one_pass_is_not():
     problem, x0, v0 = water_cluster(3, seed=4)
     system = to_openmm_system(problem)
     alpha = 0.5
-    default = AlphaRattleIntegrator(0.002, alpha, constraint_tolerance=1e-12)
+    default = AlphaRattleIntegrator(0.002, alpha=alpha, constraint_tolerance=1e-12)
     one_pass = AlphaRattleIntegrator(
-        0.002, alpha, constraint_tolerance=1e-12, midpoint_tolerance=1e-3, max_midpoint_iterations=1
+        0.002, alpha=alpha, constraint_tolerance=1e-12, midpoint_tolerance=1e-3, max_midpoint_iterations=1
     )
     defect = symplecticity_defect(problem, _openmm_map(system, default, 10), x0, v0, 4)
     defect_one_pass = symplecticity_defect(problem, _openmm_map(system, one_pass, 10), x0, v0, 4)
@@ -143,7 +145,7 @@ def test_openmm_symplectic_at_default_tolerance_and_one_pass_is_not():
 @pytest.mark.parametrize("alpha", [1 / 6, 1.0])
 def test_constraints_held_on_a_water_box(water_box, alpha):
     system = water_box.system
-    integrator = AlphaRattleIntegrator(0.002, alpha, constraint_tolerance=1e-10)
+    integrator = AlphaRattleIntegrator(0.002, alpha=alpha, constraint_tolerance=1e-10)
     ctx = make_context(system, integrator, water_box.positions, water_box.velocities)
     # SETTLE holds OpenMM's TIP3P at its own geometry, ~3e-8 relative off the nominal
     # lengths (already so in the start state): the error must not grow from there
@@ -162,7 +164,9 @@ def test_water_cluster_in_vacuum_keeps_linear_and_angular_momentum(alpha):
     system = to_openmm_system(problem)
     # L changes by 2hα (x_m − x̃_m) × F(x̃_m) per step when the midpoint x̃_m is off by
     # the iteration error, so iterate to the round-off floor here
-    integrator = AlphaRattleIntegrator(0.002, alpha, constraint_tolerance=1e-12, midpoint_tolerance=1e-14)
+    integrator = AlphaRattleIntegrator(
+        0.002, alpha=alpha, constraint_tolerance=1e-12, midpoint_tolerance=1e-14
+    )
     ctx = make_context(system, integrator, x0.reshape(-1, 3), v0.reshape(-1, 3))
     masses = problem.masses.reshape(-1, 3)[:, 0]
     l0 = angular_momentum(problem, x0, v0)
@@ -183,7 +187,7 @@ def test_pme_momentum_change_is_no_worse_than_rattle(water_box):
     p0 = masses @ water_box.velocities
     changes = {}
     for alpha in (0.0, 0.5):
-        integrator = AlphaRattleIntegrator(0.002, alpha)
+        integrator = AlphaRattleIntegrator(0.002, alpha=alpha)
         ctx = make_context(water_box.system, integrator, water_box.positions, water_box.velocities)
         _, v = _step_and_read(ctx, integrator, 20)
         changes[alpha] = np.linalg.norm(masses @ v - p0)
@@ -191,7 +195,7 @@ def test_pme_momentum_change_is_no_worse_than_rattle(water_box):
 
 
 def test_rattle_is_time_reversible_on_a_water_box(water_box):
-    integrator = AlphaRattleIntegrator(0.002, 0.0, constraint_tolerance=1e-12)
+    integrator = AlphaRattleIntegrator(0.002, alpha=0.0, constraint_tolerance=1e-12)
     ctx = make_context(water_box.system, integrator, water_box.positions, water_box.velocities)
     x, v = _step_and_read(ctx, integrator, 15)
     ctx.setVelocities(-v)
@@ -207,7 +211,9 @@ def test_rattle_is_time_reversible_on_a_water_box(water_box):
 @pytest.mark.parametrize("alpha", [0.0, 0.5, 1.0])
 def test_time_reversible_on_a_water_cluster(alpha):
     problem, x0, v0 = water_cluster(8, spacing=0.3, seed=6)
-    integrator = AlphaRattleIntegrator(0.002, alpha, constraint_tolerance=1e-12, midpoint_tolerance=1e-13)
+    integrator = AlphaRattleIntegrator(
+        0.002, alpha=alpha, constraint_tolerance=1e-12, midpoint_tolerance=1e-13
+    )
     ctx = make_context(to_openmm_system(problem), integrator, x0.reshape(-1, 3), v0.reshape(-1, 3))
     ctx.applyConstraints(1e-12)  # onto SETTLE's own water geometry
     ctx.applyVelocityConstraints(1e-12)
@@ -233,7 +239,7 @@ def test_system_without_constraints():
     v0 = rng.normal(scale=0.2, size=grid.shape)
     energies = {}
     for alpha in (0.0, 1 / 6):
-        integrator = AlphaRattleIntegrator(0.002, alpha)
+        integrator = AlphaRattleIntegrator(0.002, alpha=alpha)
         ctx = make_context(system, integrator, grid, v0)
         e0 = total_energy(ctx)
         integrator.step(200)

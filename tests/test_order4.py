@@ -9,7 +9,12 @@ import openmm as mm
 import pytest
 from conftest import invariant_errors, make_context, positions_of, velocities_of
 
-from openmm_alphaprk import AlphaRattleEnergyIntegrator, AlphaRattleIntegrator, RattleIntegrator
+from openmm_alphaprk import (
+    AlphaRattleEnergyIntegrator,
+    AlphaRattleIntegrator,
+    ControllerSettings,
+    RattleIntegrator,
+)
 from openmm_alphaprk.observables import convergence_order, energy_residuals, rms
 from openmm_alphaprk.reference import (
     GAMMA1,
@@ -99,7 +104,7 @@ def test_symplectic_for_fixed_alpha_and_one_pass_is_not(pendulum, alpha):
 def test_openmm_agrees_with_numpy_reference_step_for_step(alpha, make_problem, tolerance):
     problem, x0, v0 = make_problem()
     integrator = AlphaRattleIntegrator(
-        0.002, alpha, composition="triple-jump", constraint_tolerance=1e-12, midpoint_tolerance=1e-14
+        0.002, alpha=alpha, composition="triple-jump", constraint_tolerance=1e-12, midpoint_tolerance=1e-14
     )
     ctx = make_context(to_openmm_system(problem), integrator, x0.reshape(-1, 3), v0.reshape(-1, 3))
     x_ref, v_ref, xs, _ = integrate(problem, x0, v0, 0.002, 10, alpha, step=alpha_rattle4_step, record=True)
@@ -118,7 +123,7 @@ def test_water_cluster_keeps_constraints_and_angular_momentum(alpha):
     if alpha == "energy":
         integrator = AlphaRattleEnergyIntegrator(0.002, **options)
     else:
-        integrator = AlphaRattleIntegrator(0.002, alpha, **options)
+        integrator = AlphaRattleIntegrator(0.002, alpha=alpha, **options)
     ctx = make_context(to_openmm_system(problem), integrator, x0.reshape(-1, 3), v0.reshape(-1, 3))
     found = invariant_errors(problem, ctx, integrator)
     assert found["l0"] > 1.0
@@ -137,13 +142,15 @@ def test_energy_mode_on_a_water_box_is_far_below_rattle(water_box):
     rattle_rms = _energy_rms(
         make_context(water_box.system, rattle, water_box.positions, water_box.velocities, CPU), rattle, steps
     )
-    triple_jump = AlphaRattleIntegrator(0.002, 0.0, composition="triple-jump")
+    triple_jump = AlphaRattleIntegrator(0.002, alpha=0.0, composition="triple-jump")
     triple_rms = _energy_rms(
         make_context(water_box.system, triple_jump, water_box.positions, water_box.velocities, CPU),
         triple_jump,
         steps,
     )
-    integrator = AlphaRattleEnergyIntegrator(0.002, composition="triple-jump", energy_tolerance=0.01)
+    integrator = AlphaRattleEnergyIntegrator(
+        0.002, composition="triple-jump", controller=ControllerSettings(energy_tolerance=0.01)
+    )
     ctx = make_context(water_box.system, integrator, water_box.positions, water_box.velocities, CPU)
     energy_rms = _energy_rms(ctx, integrator, steps)
     totals = integrator.controller_totals()

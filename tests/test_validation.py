@@ -269,7 +269,7 @@ def rattle_invariants_on_the_cluster(cluster, request):
     return computed_once(
         request,
         "rattle_invariants_on_the_cluster",
-        lambda: _invariant_changes(cluster, RattleIntegrator(0.002, 1e-8), 500),
+        lambda: _invariant_changes(cluster, RattleIntegrator(0.002, constraint_tolerance=1e-8), 500),
     )
 
 
@@ -278,9 +278,9 @@ def test_openmm_water_cluster_invariants_on_reference_with_the_driver_defaults(
 ):
     steps = 500
     runs = {
-        "alpha=1/6": AlphaRattleIntegrator(0.002, 1 / 6, 1e-8),
-        "energy": AlphaRattleEnergyIntegrator(0.002, 1e-8),
-        "energy4": AlphaRattleEnergyIntegrator(0.002, 1e-8, composition="triple-jump"),
+        "alpha=1/6": AlphaRattleIntegrator(0.002, alpha=1 / 6, constraint_tolerance=1e-8),
+        "energy": AlphaRattleEnergyIntegrator(0.002, constraint_tolerance=1e-8),
+        "energy4": AlphaRattleEnergyIntegrator(0.002, constraint_tolerance=1e-8, composition="triple-jump"),
     }
     results = {name: _invariant_changes(cluster, integrator, steps) for name, integrator in runs.items()}
     results["rattle"] = rattle_invariants_on_the_cluster
@@ -303,8 +303,8 @@ def test_openmm_water_cluster_invariants_on_reference_with_the_driver_defaults(
 
 def test_openmm_energy_mode_angular_momentum_is_set_by_the_midpoint_tolerance(cluster):
     # the default without a periodic box (1e-13 nm) against the periodic-box default (1e-7 nm)
-    tight = AlphaRattleEnergyIntegrator(0.002, 1e-8)
-    loose = AlphaRattleEnergyIntegrator(0.002, 1e-8, midpoint_tolerance=1e-7)
+    tight = AlphaRattleEnergyIntegrator(0.002, constraint_tolerance=1e-8)
+    loose = AlphaRattleEnergyIntegrator(0.002, constraint_tolerance=1e-8, midpoint_tolerance=1e-7)
     dl_tight = _invariant_changes(cluster, tight, 300)[0]
     dl_loose = _invariant_changes(cluster, loose, 300)[0]
     # page (40 ps): 2.7e-11 (1e-12 nm) against 2.0e-6 relative, at twice the force evaluations per step
@@ -318,9 +318,12 @@ def test_openmm_water_cluster_on_cpu_momenta_are_limited_by_single_precision_for
     cluster, rattle_invariants_on_the_cluster
 ):
     reference = rattle_invariants_on_the_cluster
-    cpu = _invariant_changes(cluster, RattleIntegrator(0.002, 1e-8), 500, platform="CPU")
+    cpu = _invariant_changes(cluster, RattleIntegrator(0.002, constraint_tolerance=1e-8), 500, platform="CPU")
     energy4 = _invariant_changes(
-        cluster, AlphaRattleEnergyIntegrator(0.002, 1e-8, composition="triple-jump"), 500, "CPU"
+        cluster,
+        AlphaRattleEnergyIntegrator(0.002, constraint_tolerance=1e-8, composition="triple-jump"),
+        500,
+        "CPU",
     )
     # page (40 ps): ~1e-6 relative for every integrator on CPU, 2.8e-12 for RATTLE on Reference
     assert cpu[0] > 1e3 * reference[0] and cpu[1] > 1e3 * reference[1]

@@ -1,19 +1,22 @@
-"""α-RATTLE and its compositions with a fixed α: the whole step programs.
+"""α-RATTLE and its compositions with a fixed α: the whole step programs, and what the energy mode shares.
 
-The classes, each an integrator (the pieces they are built from are in :mod:`~.pieces`)::
+The classes (the pieces they are built from are in :mod:`~.pieces`)::
 
     _StepProgram                      pieces.py: common state, pieces, stepping, listing
     ├ RattleIntegrator                rattle.py
-    └ AlphaRattleIntegrator           here: fixed α, one step or a composition
+    └ _AlphaRattleBase                here: the midpoint iteration's variables and
+      │                               properties, step(), the refusal of virtual sites
+      ├ AlphaRattleIntegrator         here: a fixed α, one step or a composition
       └ AlphaRattleEnergyIntegrator   energy_mode.py: α chosen every step to hold the energy
 
 The energy mode is its own class, :class:`~.energy_mode.AlphaRattleEnergyIntegrator`
-(its programs and controller are in :mod:`~.energy_mode`); this module does not import
-it. The two fixed-α programs (one step, or a composition) are the
-``_build_*`` methods below; a composition's program runs its stages from the first
-α stage in one loop (:meth:`~.pieces._StepProgram._add_composition_loop`; the energy
-mode's loop adds its trial ends, ``energy_mode``), built from the composition's
-coefficients (:mod:`~.compositions`).
+(its programs and controller are in :mod:`~.energy_mode`), beside the fixed-α class on
+the private base :class:`_AlphaRattleBase`; this module does not import it. The two
+fixed-α programs (one step, or a composition) are the ``_build_*`` methods below; a
+composition's program runs its stages from the first α stage in one loop
+(:meth:`~.pieces._StepProgram._add_composition_loop`; the energy mode's loop adds its
+trial ends, ``energy_mode``), built from the composition's coefficients
+(:mod:`~.compositions`).
 """
 
 from __future__ import annotations
@@ -23,12 +26,11 @@ from typing import ClassVar
 import openmm.unit as unit
 
 from .._units import InputError, to_dimensionless, to_float
+from ..errors import MidpointConvergenceError
 from ..observables import positive_int
 from .compositions import Composition, requested_composition
-from .energy_settings import ControllerSettings
 from .pieces import (
     DEFAULT_CONSTRAINT_TOLERANCE,
-    MidpointConvergenceError,
     _StepProgram,
     first_forces,
     last_forces,
@@ -43,132 +45,19 @@ DEFAULT_MIDPOINT_TOLERANCE = 1e-10  # nm, RMS change of x1 per degree of freedom
 DEFAULT_MAX_MIDPOINT_ITERATIONS = 20
 
 
-class AlphaRattleIntegrator(_StepProgram):
-    """α-RATTLE with a fixed α: a one-parameter family of symplectic constrained integrators.
+class _AlphaRattleBase(_StepProgram):
+    """What α-RATTLE with a fixed α and its energy mode share (not an integrator of its own).
 
-    The potential is integrated along the straight path x0 → x1 with weights
-    (½−α, 2α, ½−α) at (0, ½, 1); α = 0 is RATTLE. For every fixed α the map is
-    symplectic on the constraint manifold, symmetric, keeps the constraints and
-    quadratic invariants (linear and angular momentum), and is of order 2
-    (Li & Wang, J. Comput. Math. 41, 2023).
-
-    With ``order=4`` or ``6``, or a ``composition``, the step is a symmetric composition
-    of such steps (:mod:`~.compositions`), α on its middle stage unless ``alpha_stages``
-    says otherwise. ``AlphaRattleIntegrator(h, 0.0, order=4)`` (``alpha4=0`` on the
-    command line) is Suzuki's fourth-order composition of RATTLE steps. The energy mode,
-    which chooses α every step to hold the total energy, is
-    :class:`~.energy_mode.AlphaRattleEnergyIntegrator`.
-
-    :meth:`program_listing` prints the step program OpenMM runs; docs/step_programs.md
-    lists every configuration's.
-
-    Parameters
-    ----------
-    timestep : openmm.unit.Quantity or float
-        Step size (a time Quantity, or a number in picoseconds).
-    alpha : float, default 0.0
-        The method parameter α (a finite number). α = 0 takes the RATTLE path with one
-        force evaluation per step; α ≠ 0 needs the implicit midpoint force.
-    constraint_tolerance : float, default 1e-8
-        Relative constraint tolerance passed to ``setConstraintTolerance``.
-    midpoint_tolerance : openmm.unit.Quantity or float, optional
-        The midpoint iteration stops when the change that the last midpoint force
-        makes to the next solve of x1, h²α ΔF/m, falls below this (nm, RMS per degree
-        of freedom). Default 1e-10 nm: symplectic to that level.
-    max_midpoint_iterations : int, default 20
-        Cap on midpoint force evaluations per step.
-    order : {2, 4, 6}, optional
-        2 (default): the α-RATTLE step. 4: Suzuki's five stages (p, p, 1 − 4p, p, p),
-        p = 1/(4 − 4^{1/3}): fourth order at α = 0 (five force evaluations per step),
-        second order at a fixed α ≠ 0 on one stage. Its sub-steps are 0.41h and −0.66h.
-        6: McLachlan's nine stages. ``docs/compositions.md`` has the measurements
-        behind the defaults.
-    composition : str or Composition, optional
-        A name of :data:`~.compositions.COMPOSITIONS` (``"triple-jump"``, three stages
-        1.35h, −1.70h, 1.35h; ``"suzuki5"``, ``"mclachlan5"``, ``"yoshida7"``,
-        ``"kahan-li-s9odr6a"``, ``"mclachlan9"``) or a
-        :class:`~.compositions.Composition`; sets the order.
-    alpha_stages : {"middle", "all"} or tuple of int, optional
-        The stages of a composition that carry α: ``"middle"`` (default), ``"all"`` or
-        stage numbers (1-based). With α on every stage a fixed α keeps the
-        composition's order (it composes one symmetric second-order method).
-
-    Raises
-    ------
-    openmm_alphaprk.integrators.pieces.IncompatibleSystemError
-        From :meth:`check_context` or the first step, for a System the program cannot
-        integrate (virtual sites with α ≠ 0).
-
-    See Also
-    --------
-    RattleIntegrator : α = 0 as its own class.
-    AlphaRattleEnergyIntegrator : α chosen every step to hold the energy.
-    RattleRescaleIntegrator : RATTLE (or a composition) with velocity rescaling.
-
-    Notes
-    -----
-    Where the force is constant, every member of the family is the same map as
-    RATTLE: α acts only through how the force varies along the step.
-
-    Each step starts with OpenMM's update-context-state step, as a ``VerletIntegrator``
-    step does: a Monte Carlo barostat, an ``AndersenThermostat`` or a
-    ``CMMotionRemover`` acts as it does there. :meth:`check_context` warns about
-    forces that are not smooth.
-
-    Examples
-    --------
-    Suzuki's composition of RATTLE steps (``alpha4=0``), then one α-RATTLE step with
-    α = 0.1, on two constrained argon atoms:
-
-    >>> import openmm, openmm.unit as unit
-    >>> from openmm_alphaprk import AlphaRattleIntegrator
-    >>> integrator = AlphaRattleIntegrator(2 * unit.femtoseconds, 0.0, order=4)
-    >>> integrator
-    AlphaRattleIntegrator(timestep=0.002 ps, alpha=0.0, composition='suzuki5')
-    >>> system = openmm.System()
-    >>> for _ in range(2):
-    ...     _ = system.addParticle(39.9)
-    >>> _ = system.addConstraint(0, 1, 0.3)
-    >>> context = openmm.Context(system, integrator, openmm.Platform.getPlatformByName("Reference"))
-    >>> context.setPositions([[0, 0, 0], [0.3, 0, 0]])
-    >>> context.setVelocities([[0, 0.1, 0], [0, -0.1, 0]])
-    >>> integrator.step(10)
-    >>> integrator.alpha = 0.1  # between steps: the program reads α each step
-    >>> integrator.step(10)
-    >>> x = context.getState(getPositions=True).getPositions(asNumpy=True)
-    >>> round(float(((x[1] - x[0]) ** 2).sum().value_in_unit(unit.nanometers**2) ** 0.5), 9)  # kept
-    0.3
+    The midpoint iteration's variables and options (``midpoint_tolerance``,
+    ``max_midpoint_iterations``), the order or composition, :attr:`alpha`,
+    :meth:`step` (which raises :class:`~openmm_alphaprk.errors.MidpointConvergenceError`)
+    and the refusal of virtual sites where a step takes the midpoint force. A subclass
+    adds its program (:meth:`_add_program`) and sets :attr:`energy_mode`.
     """
 
     _kind = 2
     #: True if α is chosen each step to hold the energy (:class:`~.energy_mode.AlphaRattleEnergyIntegrator`).
     energy_mode: ClassVar[bool] = False
-
-    def __init__(
-        self,
-        timestep: unit.Quantity | float,
-        alpha: float = 0.0,
-        constraint_tolerance: float = DEFAULT_CONSTRAINT_TOLERANCE,
-        midpoint_tolerance: unit.Quantity | float | None = None,
-        max_midpoint_iterations: int = DEFAULT_MAX_MIDPOINT_ITERATIONS,
-        *,
-        order: int | None = None,
-        composition: str | Composition | None = None,
-        alpha_stages: str | tuple[int, ...] | None = None,
-    ) -> None:
-        if isinstance(alpha, str):
-            raise InputError(_energy_mode_refusal(alpha))
-        order, chosen = _order_and_composition(order, composition, alpha_stages)
-        self._set_up(
-            timestep,
-            to_dimensionless(alpha, "alpha"),
-            constraint_tolerance,
-            DEFAULT_MIDPOINT_TOLERANCE if midpoint_tolerance is None else midpoint_tolerance,
-            max_midpoint_iterations,
-            order,
-            chosen,
-            settings=None,
-        )
 
     def _set_up(
         self,
@@ -179,66 +68,18 @@ class AlphaRattleIntegrator(_StepProgram):
         max_midpoint_iterations: int,
         order: int,
         composition: Composition | None,
-        settings: ControllerSettings | None,
     ) -> None:
-        """Check the shared options, declare the variables, add the program (``settings``: energy mode)."""
+        """Check the shared options, declare the variables, add the subclass's program."""
         self._composition = composition
         tolerance = to_float(midpoint_tolerance, unit.nanometers, "midpoint_tolerance", positive=True)
         max_iterations = positive_int(max_midpoint_iterations, "max_midpoint_iterations")
         _StepProgram.__init__(self, timestep, constraint_tolerance)
         self._add_midpoint_variables(start_alpha, tolerance, max_iterations, order, composition)
-        self._add_program(settings)
+        self._add_program()
 
-    def _add_program(self, settings: ControllerSettings | None) -> None:
-        """Add the fixed-α program, starting with the update-context-state step."""
-        build = self._build_program if self._composition is None else self._build_composition_program
-        self._add_step(build, update_context_state=True)
-
-    # ---------------------------------------------------------------- programs
-    def _build_program(self) -> None:
-        """Order 2, fixed α: RATTLE at α = 0, else a loop of solves and midpoint forces.
-
-        At α = 0 the step is the RATTLE block, the same computations as
-        :class:`~.rattle.RattleIntegrator`; its kernels read no global variable, so on CUDA,
-        OpenCL and HIP the step needs no upload of globals to the device (each is a
-        synchronisation with the host). The α ≠ 0 block follows it in program text,
-        so that its midpoint assignment comes after every constraint step.
-        """
-        self._add_save_step_start(fstart="f", fmid="f")
-        self._add_midpoint_setup("1")
-        self.beginIfBlock("alpha = 0")
-        self._add_position_solve("0.5*f")
-        self._add_velocity_update("0.5*f")
-        self.endBlock()
-        self.beginIfBlock("alpha != 0")
-        self.addComputeGlobal("solving", "1")
-        self.beginWhileBlock("solving > 0.5")
-        self.addComputeGlobal("solving", "0")
-        self._add_position_solve(first_forces("alpha"), "dt", fallback="x0")
-        self.beginIfBlock("need_midpoint > 0.5")
-        self._add_midpoint_force("dt", "alpha")
-        self.addComputeGlobal("solving", "1")
-        self.endBlock()
-        self.endBlock()
-        self._add_velocity_update(last_forces("alpha"), "dt", fallback="v0")
-        self.endBlock()
-        self._add_midpoint_end_step()
-
-    def _build_composition_program(self) -> None:
-        """Build a composition with fixed α: its stages before the first α stage, then a loop over the rest.
-
-        For the triple jump: RATTLE (γ1 h), then the loop over α-RATTLE (γ2 h) and
-        RATTLE (γ1 h). Every stage after the first α stage is inside the loop, before
-        its midpoint block, so that its position constraint precedes the midpoint
-        assignment in program text. A failed midpoint iteration makes every remaining
-        sub-step return the state the step started from.
-        """
-        composition = self._composition
-        self._add_save_step_start(xstep="x", vstep="v", fstart="f")
-        self._add_leading_substeps(composition)
-        self._add_alpha_substeps_start(composition, "1 - delta(alpha)", fmid="f")
-        self._add_composition_loop(composition)
-        self._add_midpoint_end_step()
+    def _add_program(self) -> None:
+        """Add the step program (after the midpoint variables)."""
+        raise NotImplementedError
 
     def step(self, steps: int) -> None:
         """Advance by ``steps`` steps; raise if the midpoint iteration failed on the way.
@@ -347,15 +188,179 @@ class AlphaRattleIntegrator(_StepProgram):
                 extra += f", alpha_stages={chosen.alpha_stages}"
         return f"{type(self).__name__}(timestep={self.timestep}{extra})"
 
-    def __getattr__(self, name: str) -> object:
-        if name in _energy_mode_only_names():
-            raise AttributeError(_energy_mode_only(name))
-        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
 
-    def __setattr__(self, name: str, value: object) -> None:
-        if name in _energy_mode_only_names() and not self.energy_mode:
-            raise AttributeError(_energy_mode_only(name))
-        super().__setattr__(name, value)
+class AlphaRattleIntegrator(_AlphaRattleBase):
+    """α-RATTLE with a fixed α: a one-parameter family of symplectic constrained integrators.
+
+    The potential is integrated along the straight path x0 → x1 with weights
+    (½−α, 2α, ½−α) at (0, ½, 1); α = 0 is RATTLE. For every fixed α the map is
+    symplectic on the constraint manifold, symmetric, keeps the constraints and
+    quadratic invariants (linear and angular momentum), and is of order 2
+    (Li & Wang, J. Comput. Math. 41, 2023).
+
+    With ``order=4`` or ``6``, or a ``composition``, the step is a symmetric composition
+    of such steps (:mod:`~.compositions`), α on its middle stage unless ``alpha_stages``
+    says otherwise. ``AlphaRattleIntegrator(h, alpha=0.0, order=4)`` (``alpha4=0`` on the
+    command line) is Suzuki's fourth-order composition of RATTLE steps. The energy mode,
+    which chooses α every step to hold the total energy, is
+    :class:`~.energy_mode.AlphaRattleEnergyIntegrator`.
+
+    :meth:`program_listing` prints the step program OpenMM runs; docs/step_programs.md
+    lists every configuration's.
+
+    Parameters
+    ----------
+    timestep : openmm.unit.Quantity or float
+        Step size (a time Quantity, or a number in picoseconds).
+    alpha : float, default 0.0
+        The method parameter α (a finite number). α = 0 takes the RATTLE path with one
+        force evaluation per step; α ≠ 0 needs the implicit midpoint force.
+    constraint_tolerance : float, default 1e-8
+        Relative constraint tolerance passed to ``setConstraintTolerance``.
+    midpoint_tolerance : openmm.unit.Quantity or float, optional
+        The midpoint iteration stops when the change that the last midpoint force
+        makes to the next solve of x1, h²α ΔF/m, falls below this (nm, RMS per degree
+        of freedom). Default 1e-10 nm: symplectic to that level.
+    max_midpoint_iterations : int, default 20
+        Cap on midpoint force evaluations per step.
+    order : {2, 4, 6}, optional
+        2 (default): the α-RATTLE step. 4: Suzuki's five stages (p, p, 1 − 4p, p, p),
+        p = 1/(4 − 4^{1/3}): fourth order at α = 0 (five force evaluations per step),
+        second order at a fixed α ≠ 0 on one stage. Its sub-steps are 0.41h and −0.66h.
+        6: McLachlan's nine stages. ``docs/compositions.md`` has the measurements
+        behind the defaults.
+    composition : str or Composition, optional
+        A name of :data:`~.compositions.COMPOSITIONS` (``"triple-jump"``, three stages
+        1.35h, −1.70h, 1.35h; ``"suzuki5"``, ``"mclachlan5"``, ``"yoshida7"``,
+        ``"kahan-li-s9odr6a"``, ``"mclachlan9"``) or a
+        :class:`~.compositions.Composition`; sets the order.
+    alpha_stages : {"middle", "all"} or tuple of int, optional
+        The stages of a composition that carry α: ``"middle"`` (default), ``"all"`` or
+        stage numbers (1-based). With α on every stage a fixed α keeps the
+        composition's order (it composes one symmetric second-order method).
+
+    Raises
+    ------
+    openmm_alphaprk.errors.IncompatibleSystemError
+        From :meth:`check_context` or the first step, for a System the program cannot
+        integrate (virtual sites with α ≠ 0).
+
+    See Also
+    --------
+    RattleIntegrator : α = 0 as its own class.
+    AlphaRattleEnergyIntegrator : α chosen every step to hold the energy.
+    RattleRescaleIntegrator : RATTLE (or a composition) with velocity rescaling.
+
+    Notes
+    -----
+    Where the force is constant, every member of the family is the same map as
+    RATTLE: α acts only through how the force varies along the step.
+
+    Each step starts with OpenMM's update-context-state step, as a ``VerletIntegrator``
+    step does: a Monte Carlo barostat, an ``AndersenThermostat`` or a
+    ``CMMotionRemover`` acts as it does there. :meth:`check_context` warns about
+    forces that are not smooth.
+
+    Examples
+    --------
+    Suzuki's composition of RATTLE steps (``alpha4=0``), then one α-RATTLE step with
+    α = 0.1, on two constrained argon atoms:
+
+    >>> import openmm, openmm.unit as unit
+    >>> from openmm_alphaprk import AlphaRattleIntegrator
+    >>> integrator = AlphaRattleIntegrator(2 * unit.femtoseconds, alpha=0.0, order=4)
+    >>> integrator
+    AlphaRattleIntegrator(timestep=0.002 ps, alpha=0.0, composition='suzuki5')
+    >>> system = openmm.System()
+    >>> for _ in range(2):
+    ...     _ = system.addParticle(39.9)
+    >>> _ = system.addConstraint(0, 1, 0.3)
+    >>> context = openmm.Context(system, integrator, openmm.Platform.getPlatformByName("Reference"))
+    >>> context.setPositions([[0, 0, 0], [0.3, 0, 0]])
+    >>> context.setVelocities([[0, 0.1, 0], [0, -0.1, 0]])
+    >>> integrator.step(10)
+    >>> integrator.alpha = 0.1  # between steps: the program reads α each step
+    >>> integrator.step(10)
+    >>> x = context.getState(getPositions=True).getPositions(asNumpy=True)
+    >>> round(float(((x[1] - x[0]) ** 2).sum().value_in_unit(unit.nanometers**2) ** 0.5), 9)  # kept
+    0.3
+    """
+
+    def __init__(
+        self,
+        timestep: unit.Quantity | float,
+        *,
+        alpha: float = 0.0,
+        constraint_tolerance: float = DEFAULT_CONSTRAINT_TOLERANCE,
+        midpoint_tolerance: unit.Quantity | float | None = None,
+        max_midpoint_iterations: int = DEFAULT_MAX_MIDPOINT_ITERATIONS,
+        order: int | None = None,
+        composition: str | Composition | None = None,
+        alpha_stages: str | tuple[int, ...] | None = None,
+    ) -> None:
+        if isinstance(alpha, str):
+            raise InputError(_energy_mode_refusal(alpha))
+        order, chosen = _order_and_composition(order, composition, alpha_stages)
+        self._set_up(
+            timestep,
+            to_dimensionless(alpha, "alpha"),
+            constraint_tolerance,
+            DEFAULT_MIDPOINT_TOLERANCE if midpoint_tolerance is None else midpoint_tolerance,
+            max_midpoint_iterations,
+            order,
+            chosen,
+        )
+
+    def _add_program(self) -> None:
+        """Add the fixed-α program, starting with the update-context-state step."""
+        build = self._build_program if self._composition is None else self._build_composition_program
+        self._add_step(build, update_context_state=True)
+
+    # ---------------------------------------------------------------- programs
+    def _build_program(self) -> None:
+        """Order 2, fixed α: RATTLE at α = 0, else a loop of solves and midpoint forces.
+
+        At α = 0 the step is the RATTLE block, the same computations as
+        :class:`~.rattle.RattleIntegrator`; its kernels read no global variable, so on CUDA,
+        OpenCL and HIP the step needs no upload of globals to the device (each is a
+        synchronisation with the host). The α ≠ 0 block follows it in program text,
+        so that its midpoint assignment comes after every constraint step.
+        """
+        self._add_save_step_start(fstart="f", fmid="f")
+        self._add_midpoint_setup("1")
+        self.beginIfBlock("alpha = 0")
+        self._add_position_solve("0.5*f")
+        self._add_velocity_update("0.5*f")
+        self.endBlock()
+        self.beginIfBlock("alpha != 0")
+        self.addComputeGlobal("solving", "1")
+        self.beginWhileBlock("solving > 0.5")
+        self.addComputeGlobal("solving", "0")
+        self._add_position_solve(first_forces("alpha"), "dt", fallback="x0")
+        self.beginIfBlock("need_midpoint > 0.5")
+        self._add_midpoint_force("dt", "alpha")
+        self.addComputeGlobal("solving", "1")
+        self.endBlock()
+        self.endBlock()
+        self._add_velocity_update(last_forces("alpha"), "dt", fallback="v0")
+        self.endBlock()
+        self._add_midpoint_end_step()
+
+    def _build_composition_program(self) -> None:
+        """Build a composition with fixed α: its stages before the first α stage, then a loop over the rest.
+
+        For the triple jump: RATTLE (γ1 h), then the loop over α-RATTLE (γ2 h) and
+        RATTLE (γ1 h). Every stage after the first α stage is inside the loop, before
+        its midpoint block, so that its position constraint precedes the midpoint
+        assignment in program text. A failed midpoint iteration makes every remaining
+        sub-step return the state the step started from.
+        """
+        composition = self._composition
+        self._add_save_step_start(xstep="x", vstep="v", fstart="f")
+        self._add_leading_substeps(composition)
+        self._add_alpha_substeps_start(composition, "1 - delta(alpha)", fmid="f")
+        self._add_composition_loop(composition)
+        self._add_midpoint_end_step()
 
 
 def _order_and_composition(
@@ -381,32 +386,3 @@ def _energy_mode_refusal(alpha: str) -> str:
             "AlphaRattleEnergyIntegrator); AlphaRattleIntegrator takes a number."
         )
     return f"alpha must be a number (the method parameter), got {alpha!r}."
-
-
-def _energy_mode_only(name: str) -> str:
-    return (
-        f"{name} exists only in the energy-preserving mode; create the integrator with "
-        "AlphaRattleEnergyIntegrator(timestep, ...)."
-    )
-
-
-def _energy_mode_only_names() -> frozenset[str]:
-    """Return what the energy mode has and a fixed α has not: its public properties and methods.
-
-    The energy mode's class is found among this class's subclasses (it is defined in
-    :mod:`~.energy_mode`, which this module does not import).
-    """
-    subclasses, found = [AlphaRattleIntegrator], []
-    while subclasses:
-        cls = subclasses.pop()
-        subclasses.extend(cls.__subclasses__())
-        if cls.energy_mode:
-            found.append(cls)
-    return frozenset(
-        name
-        for energy_class in found
-        for cls in energy_class.__mro__
-        if cls is not AlphaRattleIntegrator and not issubclass(AlphaRattleIntegrator, cls)
-        for name in vars(cls)
-        if not name.startswith("_") and name != "energy_mode"
-    )

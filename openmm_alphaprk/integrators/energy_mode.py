@@ -76,15 +76,15 @@ import openmm.unit as unit
 from .._units import InputError
 from ..errors import EnergyHoldWarning  # defined there; importable from here too
 from ..smooth_forces import NonSmoothForcesWarning, outside_stacklevel
-from .alpha_rattle import DEFAULT_MAX_MIDPOINT_ITERATIONS, AlphaRattleIntegrator, _order_and_composition
+from .alpha_rattle import DEFAULT_MAX_MIDPOINT_ITERATIONS, _AlphaRattleBase, _order_and_composition
 from .compositions import Composition
 from .energy_settings import (
     CONTROLLER_DEFAULTS,
-    DEFAULT_SLOPE_DAMPING,
     NON_PERIODIC_MIDPOINT_TOLERANCE,
     PREDICTOR_FORGETTING,
     PREDICTOR_WARMUP,
     ControllerSettings,
+    _Controller,
     alpha_scale_of,
     check_alpha_bounds,
     controller_settings,
@@ -144,14 +144,16 @@ def _ar2_prediction(series: str) -> str:
     )
 
 
-class AlphaRattleEnergyIntegrator(_ReferenceEnergy, AlphaRattleIntegrator):
+class AlphaRattleEnergyIntegrator(_ReferenceEnergy, _AlphaRattleBase):
     """α-RATTLE's energy-preserving mode: α chosen every step so that H stays at E_ref.
 
     The method under study: measured against RATTLE + velocity rescaling
     (:class:`~.rescale.RattleRescaleIntegrator`, ``order=4`` for a composition), it costs
     more and tracks the dynamics less well everywhere measured (docs/energy_mode.md).
 
-    Each step is a member of the α-RATTLE family whose α (on one stage of a composition)
+    Each step is a member of the α-RATTLE family (the fixed-α class's sibling on their
+    shared private base, not a subclass of :class:`~.alpha_rattle.AlphaRattleIntegrator`)
+    whose α (on one stage of a composition)
     the controller of this module's docstring chooses so that the total energy after the
     step equals E_ref, the energy of the state the run started from (taken and reset by
     the rule of :mod:`~.reference_energy`). Constraints and linear momentum are kept
@@ -176,29 +178,6 @@ class AlphaRattleEnergyIntegrator(_ReferenceEnergy, AlphaRattleIntegrator):
         angular momentum to round-off.
     max_midpoint_iterations : int, default 20
         Cap on midpoint force evaluations per step, summed over the trials.
-    alpha_bounds : tuple of (float, float), optional
-        The interval (low, high) α* is kept in; default (−0.5, 1.5) at order 2; on a
-        composition (−0.2, 0.2) × s, s = (1.702/|c_α|)³ the α stage's authority against
-        the triple jump's middle stage (:func:`~.energy_settings.alpha_scale_of`: 1 for
-        the triple jump, 17.3 for Suzuki's five stages).
-    energy_tolerance : openmm.unit.Quantity or float, optional
-        Target |H − E_ref| after each step (kJ/mol). Default: 3× the measured noise of
-        OpenMM's energy for the system's size and the platform's precision
-        (:func:`openmm_alphaprk.platforms.default_energy_tolerance`), set by
-        :meth:`check_context`; without it each ``step()`` call sets the single-precision
-        value. A target inside the noise only buys trials that chase round-off.
-    max_trials : int, optional
-        Trials per step that may change α (at least 2: only a second trial measures the
-        slope dH/dα). Default 3 at order 2, 4 on a composition.
-    max_alpha_change : float, optional
-        The largest change of α one secant update may make (default 1 at order 2,
-        0.05 × s on a composition).
-    alpha_probe : float, optional
-        The smallest first move of α in a step, so that the step measures its own slope
-        dH/dα (default 0.05 at order 2, 0.005 × s on a composition).
-    slope_damping : float, default 0.5
-        d in the damped secant step Δα = −r S/(S² + (d S̄)²), S̄ a running mean of the
-        measured slopes |S| (0 turns the damping off).
     order : {2, 4, 6}, optional
         2 (default): one α-RATTLE step, which cannot hold the energy of a real system
         (docs/energy_mode.md); 4: Suzuki's five stages, α on the middle one, fourth
@@ -208,6 +187,13 @@ class AlphaRattleEnergyIntegrator(_ReferenceEnergy, AlphaRattleIntegrator):
         :class:`~.compositions.Composition`; sets the order.
     alpha_stages : {"middle"} or tuple of int, optional
         The one stage of a composition that carries α (default the middle one).
+    controller : ControllerSettings, optional
+        The controller's options (:class:`~.energy_settings.ControllerSettings`: the α
+        interval, the energy tolerance, the trials per step, the moves of α, the slope
+        damping); a field left None, or no settings, takes the order's default
+        (:data:`~.energy_settings.CONTROLLER_DEFAULTS`). The α interval and the energy
+        tolerance can be changed between steps (:attr:`alpha_bounds`,
+        :attr:`energy_tolerance`).
 
     See Also
     --------
@@ -237,26 +223,15 @@ class AlphaRattleEnergyIntegrator(_ReferenceEnergy, AlphaRattleIntegrator):
     def __init__(
         self,
         timestep: unit.Quantity | float,
+        *,
         constraint_tolerance: float = DEFAULT_CONSTRAINT_TOLERANCE,
         midpoint_tolerance: unit.Quantity | float | None = None,
         max_midpoint_iterations: int = DEFAULT_MAX_MIDPOINT_ITERATIONS,
-        *,
-        alpha_bounds: tuple[float, float] | None = None,
-        energy_tolerance: unit.Quantity | float | None = None,
-        max_trials: int | None = None,
-        max_alpha_change: float | None = None,
-        alpha_probe: float | None = None,
-        slope_damping: float = DEFAULT_SLOPE_DAMPING,
         order: int | None = None,
         composition: str | Composition | None = None,
         alpha_stages: str | tuple[int, ...] | None = None,
+        controller: ControllerSettings | None = None,
     ) -> None:
-        if isinstance(constraint_tolerance, str):
-            raise InputError(
-                f"AlphaRattleEnergyIntegrator takes no alpha (got {constraint_tolerance!r} where the "
-                "constraint tolerance goes): the controller chooses it. Use "
-                "AlphaRattleEnergyIntegrator(timestep, order=4)."
-            )
         order, chosen = _order_and_composition(order, composition, alpha_stages)
         if chosen is not None and len(chosen.alpha_stages) != 1:
             raise InputError(
@@ -267,17 +242,13 @@ class AlphaRattleEnergyIntegrator(_ReferenceEnergy, AlphaRattleIntegrator):
         controls = 2 if chosen is None else 4  # the controller's defaults: one step, or a composition
         settings = controller_settings(
             controls,
-            alpha_bounds,
-            energy_tolerance,
-            max_trials,
-            max_alpha_change,
-            alpha_probe,
-            slope_damping,
+            controller,
             automatic_midpoint_tolerance=midpoint_tolerance is None,
             alpha_scale=1.0 if chosen is None else alpha_scale_of(chosen),
         )
         low, high = settings.alpha_bounds
         default_tolerance = CONTROLLER_DEFAULTS[controls].midpoint_tolerance
+        self._controller = settings  # read by _add_program
         self._set_up(
             timestep,
             min(max(0.0, low), high),
@@ -286,17 +257,16 @@ class AlphaRattleEnergyIntegrator(_ReferenceEnergy, AlphaRattleIntegrator):
             max_midpoint_iterations,
             order,
             chosen,
-            settings,
         )
 
-    def _add_program(self, settings: ControllerSettings | None) -> None:
+    def _add_program(self) -> None:
         """Add the controller's variables and the energy-mode program (NVE: no update step)."""
         composed = self._composition is not None
-        self._add_energy_mode_variables(settings, composed)
+        self._add_energy_mode_variables(self._controller, composed)
         build = self._build_energy_program if not composed else self._build_composition_energy_program
         self._add_step(build, update_context_state=False)
 
-    def _add_energy_mode_variables(self, settings: ControllerSettings, composed: bool) -> None:
+    def _add_energy_mode_variables(self, settings: _Controller, composed: bool) -> None:
         """Declare the controller's settings and state (after :meth:`_add_midpoint_variables`)."""
         low, high = settings.alpha_bounds
         self._add_reference_energy_variables(settings.energy_tolerance)

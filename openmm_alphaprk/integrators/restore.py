@@ -13,17 +13,20 @@ from .rescale import RattleRescaleIntegrator
 from .splitting_rattle import SplittingRattleIntegrator
 from .variables import KIND_VARIABLE, REFERENCE_ENERGY
 
-#: This package's integrator classes (the energy mode's class is an AlphaRattleIntegrator):
-#: ``isinstance(integrator, PACKAGE_INTEGRATORS)`` tells an integrator that counts its force
-#: evaluations from one that does not (``openmm.VerletIntegrator``).
+#: This package's integrator classes: ``isinstance(integrator, PACKAGE_INTEGRATORS)`` tells an
+#: integrator that counts its force evaluations from one that does not (``openmm.VerletIntegrator``).
 PACKAGE_INTEGRATORS = (
     RattleIntegrator,
     RattleRescaleIntegrator,
     AlphaRattleIntegrator,
+    AlphaRattleEnergyIntegrator,
     SplittingRattleIntegrator,
 )
 
-_CLASSES_BY_KIND: dict[int, type[_StepProgram]] = {cls._kind: cls for cls in PACKAGE_INTEGRATORS}
+#: The class of each program kind; the energy mode shares the fixed α's kind (told apart by E_ref).
+_CLASSES_BY_KIND: dict[int, type[_StepProgram]] = {
+    cls._kind: cls for cls in PACKAGE_INTEGRATORS if cls is not AlphaRattleEnergyIntegrator
+}
 
 
 def counted_force_evaluations(integrator: mm.Integrator) -> int | None:
@@ -62,7 +65,7 @@ def force_evaluations_per_step(integrator: mm.Integrator) -> float:
     >>> from openmm_alphaprk.integrators import force_evaluations_per_step
     >>> from openmm_alphaprk.systems import prepare_system
     >>> cluster = prepare_system("water-cluster")
-    >>> suzuki = AlphaRattleIntegrator(0.002, 0.0, order=4)  # five RATTLE sub-steps
+    >>> suzuki = AlphaRattleIntegrator(0.002, alpha=0.0, order=4)  # five RATTLE sub-steps
     >>> context = openmm.Context(cluster.system, suzuki, openmm.Platform.getPlatformByName("CPU"))
     >>> context.setState(cluster.state)
     >>> suzuki.step(2)
@@ -106,7 +109,7 @@ def restore_integrator(
 
     >>> import openmm, openmm.unit as unit
     >>> from openmm_alphaprk import AlphaRattleIntegrator, restore_integrator
-    >>> xml = openmm.XmlSerializer.serialize(AlphaRattleIntegrator(2 * unit.femtoseconds, 0.1, order=4))
+    >>> xml = openmm.XmlSerializer.serialize(AlphaRattleIntegrator(2 * unit.femtoseconds, alpha=0.1, order=4))
     >>> plain = openmm.XmlSerializer.deserialize(xml)
     >>> type(plain).__name__
     'CustomIntegrator'

@@ -135,9 +135,9 @@ class SplittingRattleIntegrator(_StepProgram):
     def __init__(
         self,
         timestep: unit.Quantity | float,
+        *,
         alpha: float | None = None,
         constraint_tolerance: float = DEFAULT_CONSTRAINT_TOLERANCE,
-        *,
         splitting: str | Splitting | None = None,
     ) -> None:
         self._splitting = requested_splitting(alpha, splitting)

@@ -27,10 +27,10 @@ PROGRAMS = {
     "RattleIntegrator(h)": lambda: RattleIntegrator(0.002),
     "RattleRescaleIntegrator(h)": lambda: RattleRescaleIntegrator(0.002),
     "RattleRescaleIntegrator(h, order=4)": lambda: RattleRescaleIntegrator(0.002, order=4),
-    "AlphaRattleIntegrator(h, alpha)": lambda: AlphaRattleIntegrator(0.002, 0.1),
-    "AlphaRattleIntegrator(h, alpha, order=4)": lambda: AlphaRattleIntegrator(0.002, 0.01, order=4),
+    "AlphaRattleIntegrator(h, alpha)": lambda: AlphaRattleIntegrator(0.002, alpha=0.1),
+    "AlphaRattleIntegrator(h, alpha, order=4)": lambda: AlphaRattleIntegrator(0.002, alpha=0.01, order=4),
     "AlphaRattleIntegrator(h, alpha, composition='triple-jump')": lambda: AlphaRattleIntegrator(
-        0.002, 0.01, composition="triple-jump"
+        0.002, alpha=0.01, composition="triple-jump"
     ),
     "AlphaRattleEnergyIntegrator(h)": lambda: AlphaRattleEnergyIntegrator(0.002),
     "AlphaRattleEnergyIntegrator(h, order=4)": lambda: AlphaRattleEnergyIntegrator(0.002, order=4),
