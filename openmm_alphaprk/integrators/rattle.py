@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import openmm.unit as unit
 
+from .compositions import Composition, requested_composition
 from .pieces import DEFAULT_CONSTRAINT_TOLERANCE, _StepProgram
 from .splittings import RATTLE
 
@@ -30,6 +31,13 @@ class RattleIntegrator(_StepProgram):
         Step size (a time Quantity, or a number in picoseconds).
     constraint_tolerance : float, default 1e-8
         Relative constraint tolerance passed to ``setConstraintTolerance``.
+    order : {2, 4, 6}, optional
+        Instead of one RATTLE step (2, the default), a symmetric composition of RATTLE
+        steps (:mod:`~.compositions`): ``order=4`` (Suzuki's five stages), ``order=6``
+        (McLachlan's nine); s force evaluations per step for s stages.
+    composition : str or Composition, optional
+        A composition by name (:data:`~.compositions.COMPOSITIONS`) or a
+        :class:`~.compositions.Composition`, instead of ``order``.
 
     See Also
     --------
@@ -65,12 +73,17 @@ class RattleIntegrator(_StepProgram):
         timestep: unit.Quantity | float,
         *,
         constraint_tolerance: float = DEFAULT_CONSTRAINT_TOLERANCE,
+        order: int | None = None,
+        composition: str | Composition | None = None,
     ) -> None:
+        self._composition = requested_composition(order, composition)
         super().__init__(timestep, constraint_tolerance)
+        if self._composition is not None:
+            self._add_record(self._composition)
         self._add_step(self._build_program, update_context_state=True)
 
     def _build_program(self) -> None:
-        """One RATTLE step: the position solve with F(x0), the velocity update with F(x1)."""
+        """One RATTLE step, or the composition's RATTLE steps, in straight-line code."""
         self._add_save_step_start()
-        self._add_substeps(RATTLE.substeps())
+        self._add_substeps((self._composition or RATTLE).substeps())
         self._add_end_step()

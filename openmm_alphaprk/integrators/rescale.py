@@ -7,7 +7,7 @@ relative to the rigid-body motion are scaled so that the total energy is E_ref a
 
 v_rigid = V_cm + ω × (x − x_cm) is the rigid-body motion: the centre-of-mass velocity
 V_cm = P/M always, and, unless the System has a periodic box (see
-:meth:`RattleRescaleIntegrator.check_context`), the rigid rotation ω = I⁻¹L about the centre
+:meth:`RattleRescaleIntegrator._add_conservation_test`), the rigid rotation ω = I⁻¹L about the centre
 of mass. RATTLE keeps P and L (to round-off, and to the small net force of PME's reciprocal
 part), so both are measured when E_ref is taken and whenever the state was set (the
 reference check's block, :mod:`~.reference_energy`) and carried between steps; the centre
@@ -20,8 +20,8 @@ and reset by the rule of :mod:`~.reference_energy`, as the energy mode takes it.
 
 A System whose forces do not conserve momentum (an external potential, a particle fixed in
 space: :func:`openmm_alphaprk.nve.momentum_breaking_forces`) has no rigid-body motion to
-keep: :meth:`RattleRescaleIntegrator.check_context` turns it off (``translation`` = 0) and
-the step scales all the velocities, v ← s v.
+keep: the program (or :meth:`RattleRescaleIntegrator.check_context`) turns it off
+(``translation`` = 0) and the step scales all the velocities, v ← s v.
 
 A step for which no real positive s exists (E_ref − V ≤ K_rigid, or no internal kinetic
 energy) is not taken: the Context keeps the state it started from, the steps after it in
@@ -41,14 +41,13 @@ from __future__ import annotations
 
 import math
 import numbers
-import warnings
 from collections.abc import Callable
 
 import openmm as mm
 import openmm.unit as unit
 
 from .._units import InputError
-from ..errors import UncheckedContextWarning, VelocityRescaleError  # defined there; importable from here too
+from ..errors import VelocityRescaleError  # defined there; importable from here too
 from ..nve import momentum_breaking_forces
 from .compositions import Composition, requested_composition
 from .pieces import DEFAULT_CONSTRAINT_TOLERANCE, _StepProgram
@@ -56,7 +55,10 @@ from .reference_energy import _ReferenceEnergy, energy_tolerance_setting
 from .splittings import RATTLE, SPLITTINGS, Splitting
 from .splittings import splitting as named_splitting
 from .stage_sets import StageSet
-from .variables import RATTLE_RESIDUAL, RESCALE_HALTED, STEPS_TAKEN, VELOCITY_SCALE
+from .variables import N_PARTICLES, RATTLE_RESIDUAL, RESCALE_HALTED, STEPS_TAKEN, VELOCITY_SCALE
+
+#: A global set to 1 by :meth:`RattleRescaleIntegrator.check_context`: the System's box and forces known.
+CONTEXT_CHECKED = "context_checked"
 
 _AXES = {"x": "vector(1,0,0)", "y": "vector(0,1,0)", "z": "vector(0,0,1)"}
 #: The centre-of-mass velocity, per degree of freedom, from the axis weights ``axis_x`` …
@@ -119,13 +121,15 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
     step, so barostats, thermostats and a ``CMMotionRemover`` do not act;
     :meth:`check_context` warns about them and about forces that are not smooth.
 
-    Call :meth:`check_context` (e.g. ``integrator.check_context(simulation.context)``)
-    once after creating the Context: it shows the integrator whether the System has a
-    periodic box, where angular momentum is not conserved and only the centre-of-mass
-    velocity is kept out of the scaling (without the call the rigid rotation is taken
-    out too, which keeps everything right at 10 more sums per step), whether its forces
-    conserve momentum (if not, every velocity is scaled), and the platform's
-    precision behind the default energy tolerance.
+    A drop-in: it needs no call beyond OpenMM's. What rigid-body motion the scaling keeps
+    is decided in the program from the forces at the state E_ref is taken from (see
+    :meth:`_add_conservation_test`): P and the rigid rotation without a periodic box, P
+    alone with one (where the step then sums the kinetic energy alone), neither where
+    the forces do not conserve momentum (an external potential: every velocity is
+    scaled). :meth:`check_context` (e.g. ``integrator.check_context(simulation.context)``)
+    is an optional check: it decides the same from the System itself, warns about what
+    NVE does not suit (barostats, thermostats, forces that are not smooth) and takes the
+    default energy tolerance from the platform's precision.
 
     Parameters
     ----------
@@ -136,8 +140,8 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
     energy_tolerance : openmm.unit.Quantity or float, optional
         Total-energy change (Quantity or kJ/mol) below which a state set between steps
         keeps E_ref (see :attr:`energy_tolerance`); default: 3× the noise of OpenMM's
-        energy for the system's size and the platform's precision, set by
-        :meth:`check_context`.
+        energy for the system's size and the platform's precision (set by
+        :meth:`check_context`; without it, for the least precise platform).
     order : {2, 4, 6}, optional
         Instead of one RATTLE step (2, the default), a symmetric composition of RATTLE
         steps (:mod:`~.compositions`): ``order=4`` (Suzuki's five stages), ``order=6``
@@ -191,10 +195,9 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
     >>> integrator = RattleRescaleIntegrator(2 * unit.femtoseconds, order=4)
     >>> context = openmm.Context(water.system, integrator, openmm.Platform.getPlatformByName("Reference"))
     >>> context.setState(water.state)
-    >>> integrator.check_context(context)  # no periodic box: the rotation stays out of the scaling
-    >>> integrator.removes_rotation
-    True
-    >>> integrator.step(5)
+    >>> integrator.step(5)  # no call but OpenMM's: the program finds the forces keep P and L
+    >>> integrator.removes_rotation, integrator.removes_translation
+    (True, True)
     >>> state = context.getState(getEnergy=True)
     >>> residual = state.getKineticEnergy() + state.getPotentialEnergy() - integrator.reference_energy
     >>> abs(residual) < integrator.energy_tolerance  # H held at E_ref
@@ -206,7 +209,7 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
     >>> every_tenth = RattleRescaleIntegrator(2 * unit.femtoseconds, rescale_interval=10)
     >>> context = openmm.Context(water.system, every_tenth, openmm.Platform.getPlatformByName("Reference"))
     >>> context.setState(water.state)
-    >>> every_tenth.check_context(context)
+    >>> every_tenth.check_context(context)  # optional: the System's own answer, and its warnings
     >>> every_tenth.step(7)
     >>> every_tenth.step(3)  # the count runs on across calls: this call ends with a rescaling
     >>> state = context.getState(getEnergy=True)
@@ -249,8 +252,13 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         self._add_step(self._build_program, update_context_state=False, halted=RESCALE_HALTED)
 
     def _add_rescale_variables(self) -> None:
-        self.addGlobalVariable("rotation", 1)  # check_context sets 0 for a periodic System
-        self.addGlobalVariable("translation", 1)  # check_context sets 0 where forces break momentum
+        self.addGlobalVariable("rotation", 1)  # 0 for a periodic System
+        self.addGlobalVariable("translation", 1)  # 0 where the forces break momentum
+        self.addGlobalVariable(CONTEXT_CHECKED, 0)  # 1 once check_context has decided both
+        for name in ("net_force", "force_scale", "net_torque", "torque_scale", *(
+            f"net_{kind}_{axis}" for kind in ("force", "torque") for axis in _AXES
+        )):
+            self.addGlobalVariable(name, 0)
         self.addGlobalVariable("total_mass", 0)
         for name in (
             "potential_energy",
@@ -334,7 +342,7 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
             self._add_reference_check(on_moved=moved, **check)
 
     def _add_base_step(self) -> None:
-        """Add the base step's sub-steps from x0, v0 (F(x0) in ``fstart``): RATTLE, a composition or a splitting."""
+        """Add the base step from x0, v0 (F(x0) in ``fstart``): RATTLE, a composition or a splitting."""
         self._add_substeps(self._base.substeps(), first_force="fstart")
 
     def _add_plain_step(self) -> None:
@@ -442,6 +450,9 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         without ``translation`` (forces that do not conserve momentum).
         """
         self._add_axis_weights()
+        self.beginIfBlock(f"{CONTEXT_CHECKED} < 0.5")
+        self._add_conservation_test()
+        self.endBlock()
         for axis in _AXES:
             self._add_sum(f"momentum_{axis}", f"m*v*axis_{axis}")
             self.addComputeGlobal(f"momentum_{axis}", f"translation*momentum_{axis}")
@@ -451,6 +462,38 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         for axis, unit_vector in _AXES.items():
             self._add_sum(f"angular_{axis}", f"m*cross({r}, v)*{unit_vector}")
         self.endBlock()
+
+    def _add_conservation_test(self) -> None:
+        """Decide from the forces whether they keep P (``translation``) and L (``rotation``).
+
+        Without :meth:`check_context` the program cannot see the System, so it reads the
+        answer off the forces at the state E_ref is taken from: pair forces without a
+        periodic box sum to zero force and zero torque about the centre of mass (to
+        round-off, about 1e-8 of Σ|f| and of Σ|r||f|), an external potential (a particle
+        held in space, a field) to a net force, and minimum-image pairs across a periodic
+        boundary to a net torque (about 1e-3 of Σ|r||f| in a box of a few nm, falling
+        slowly with its size). ``translation`` = 1 where |Σf| ≤ 1e-5 Σ|f| and the System
+        has more than one particle (one particle has no motion but its centre's);
+        ``rotation`` = 1 besides where |Σ r × f| ≤ 1e-6 Σ|r||f|. A state whose forces all
+        vanish keeps both. Restraints on a few atoms of many can pass for momentum-keeping
+        forces here: :meth:`check_context` reads the System's forces instead.
+        """
+        net = " + ".join(f"net_force_{axis}^2" for axis in _AXES)
+        for axis in _AXES:
+            self._add_sum(f"net_force_{axis}", f"f*axis_{axis}")
+        self._add_sum("force_scale", "abs(f)")
+        self.addComputeGlobal("net_force", f"sqrt({net})")
+        self.addComputeGlobal(
+            "translation",
+            f"(1 - delta({N_PARTICLES} - 1))*step(1e-5*force_scale - net_force)",
+        )
+        self._add_centre_of_mass()
+        r = "(x - vector(centre_x, centre_y, centre_z))"
+        for axis, unit_vector in _AXES.items():
+            self._add_sum(f"net_torque_{axis}", f"cross({r}, f)*{unit_vector}")
+        self._add_sum("torque_scale", f"sqrt(dot({r}, {r})*dot(f, f))*vector(1, 0, 0)")
+        self.addComputeGlobal("net_torque", "sqrt(" + " + ".join(f"net_torque_{a}^2" for a in _AXES) + ")")
+        self.addComputeGlobal("rotation", "translation*step(1e-6*torque_scale - net_torque)")
 
     def _add_centre_of_mass(self) -> None:
         for axis, unit_vector in _AXES.items():
@@ -529,21 +572,19 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         steps = int(steps)
         if steps <= 0:
             return
-        if self._checked_context() is None and not getattr(self, "_warned_unchecked", False):
-            self._warned_unchecked = True
-            warnings.warn(
-                f"{type(self).__name__} has not seen its Context: it takes the System for one without a "
-                "periodic box, keeps the rigid rotation out of the scaling and sums the rigid-body motion "
-                "every step. With a periodic box call integrator.check_context(context) once after "
-                "creating the Context (simulation.context): its steps then sum the kinetic energy alone.",
-                UncheckedContextWarning,
-                stacklevel=2,
-            )
         self.setGlobalVariableByName(RESCALE_HALTED, 0)
         before = self.steps_taken
         super().step(steps)
         if self.getGlobalVariableByName(RESCALE_HALTED):
             raise VelocityRescaleError(self._no_factor_message(steps - (self.steps_taken - before)))
+
+    def _checked_context(self) -> mm.Context | None:
+        """As for every integrator; once the checked Context is gone the program decides again."""
+        had_one = getattr(self, "_checked", None) is not None
+        context = super()._checked_context()
+        if had_one and context is None:
+            self.setGlobalVariableByName(CONTEXT_CHECKED, 0)
+        return context
 
     def _no_factor_message(self, idle_steps: int) -> str:
         get = self.getGlobalVariableByName
@@ -591,6 +632,7 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
             self.reset_reference_energy()  # P measured as carried must be measured again (as 0)
         self.setGlobalVariableByName("translation", float(translation))
         self.setGlobalVariableByName("rotation", float(rotation))
+        self.setGlobalVariableByName(CONTEXT_CHECKED, 1)
 
     # ---------------------------------------------------------------- what the user reads
     @property
