@@ -36,6 +36,7 @@ from ..runs.integrator_names import UnknownIntegratorError, label, make_integrat
 from ..systems import PreparedSystem, build_water_box, list_systems, prepare_system
 from ..systems.definitions import DefinitionError
 from ..systems.files import repartition_hydrogen_mass
+from .schema import keyed_rows
 
 
 @dataclass
@@ -477,7 +478,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             "timestep_fs": args.timestep,
             "hydrogen_mass_amu": args.hydrogen_mass,
             "integrators": names,
-            "rows": [asdict(row) for row in rows],
+            "rows": keyed_rows((asdict(row) for row in rows), names),
         }
         with open(args.json, "w", encoding="utf-8") as handle:
             json.dump(result, handle, indent=2)

@@ -44,6 +44,7 @@ from ..runs.integrator_names import SubStepped, at_divisor, label, make_integrat
 from ..systems import PreparedSystem, build_water_box, list_systems, prepare_system
 from ..systems.arguments import add_file_arguments, system_to_prepare, unknown_systems
 from .cost import _context, add_box_arguments, build_platform, interleaved_timing, platform_properties
+from .schema import keyed_rows
 
 
 @dataclass
@@ -554,7 +555,11 @@ def _benchmark_one(box: PreparedSystem, description: str, args: argparse.Namespa
     )
     print(format_energy_table(rows, header), flush=True)
     print(format_ratios(rows), flush=True)
-    result = {"header": header, "rows": [asdict(row) for row in rows], "ratios": ratios_to_rattle(rows)}
+    result = {
+        "header": header,
+        "rows": keyed_rows((asdict(row) for row in rows), names),
+        "ratios": ratios_to_rattle(rows),
+    }
     if args.scan:
         result["scan"] = _scan(box, integrators, args)
     return result, traces
