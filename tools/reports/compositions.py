@@ -17,7 +17,7 @@ from pathlib import Path
 
 from openmm_alphaprk.equal_cost import gain_text
 from openmm_alphaprk.workflows.plots import plot_accuracy
-from tools.reports.accuracy import rows_table
+from tools.reports.accuracy import baselines, rows_table
 from tools.reports.markdown import markdown_table
 from tools.reports.sources import pick
 
@@ -42,11 +42,8 @@ def verdicts(result: dict) -> str:
         except LookupError:
             continue
         mine = {h["time_fs"]: h["position_rms"] for h in mine_row["horizons"]}
-        for row in result["rows"]:
-            if f"({name})" not in row["role"]:
-                continue
+        for row, why in baselines(result["rows"], mine_row):
             theirs = {h["time_fs"]: h["position_rms"] for h in row["horizons"]}
-            why = "; ".join(part.split(" (")[0] for part in row["role"].split("; ") if f"({name})" in part)
             cells = [mine_row["name"], f"{mine_row['force_evaluations_per_step']:.2f}", row["name"], why]
             cells.append(_ratio(row["rms_residual"] / mine_row["rms_residual"]))
             cells += [_ratio(theirs[t] / mine[t]) if t in mine and t in theirs else "–" for t in horizons]
