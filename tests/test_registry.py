@@ -16,15 +16,19 @@ import openmm as mm
 import openmm.unit as unit
 import pytest
 
+from openmm_alphaprk import RattleRescaleIntegrator
 from openmm_alphaprk.integrators import counted_force_evaluations
 from openmm_alphaprk.integrators.splittings import SPLITTINGS, Splitting
 from openmm_alphaprk.runs.integrator_names import (
     FAMILIES,
     INTEGRATOR_HELP,
+    LAYERS,
+    Layer,
     example_names,
     label,
     make_integrator,
     parse_integrator,
+    register_layer,
 )
 from openmm_alphaprk.systems import prepare_system
 
@@ -163,3 +167,47 @@ def test_a_splitting_added_as_data_runs_by_name_through_the_cli(four_stage_split
     summary = json.loads(capsys.readouterr().out)
     assert summary["integrator"] == "split:quarter+rescale" and summary["steps"] == 8
     assert summary["force_evaluations_per_step"] == pytest.approx(4.0)
+
+
+class UniformRescaleIntegrator(RattleRescaleIntegrator):
+    """The base step, then every velocity scaled by one factor so that H = E_ref (no rigid motion kept)."""
+
+    def _add_conservation_test(self) -> None:
+        self.addComputeGlobal("translation", "0")
+        self.addComputeGlobal("rotation", "0")
+
+    def _check_system(self, context: mm.Context) -> None:
+        super()._check_system(context)
+        self.setGlobalVariableByName("translation", 0)
+        self.setGlobalVariableByName("rotation", 0)
+
+
+@pytest.fixture
+def uniform_layer():
+    """A way of holding the energy added as one class and one registration, removed afterwards."""
+    layer = register_layer(
+        Layer("uniform", UniformRescaleIntegrator, "uniform scaling", "every velocity scaled by one factor")
+    )
+    yield layer
+    del LAYERS[layer.word]
+
+
+def test_a_layer_added_as_one_class_runs_by_name_through_the_cli(uniform_layer, tmp_path, capsys):
+    """one new layer class: the grammar, the label, every base and the CLI take it."""
+    from openmm_alphaprk.cli import main
+
+    assert (
+        label("split:me2+uniform@5")
+        == "splitting, minimum error (α = 0.3068) + uniform scaling every 5 steps"
+    )
+    assert isinstance(make_integrator("rattle4+uniform", 0.001), UniformRescaleIntegrator)
+    code = main(
+        ["run", "water-cluster", "rattle+uniform", "--steps", "8", "--timestep", "1fs", "--platform", "CPU"]
+        + ["--energy-interval", "2"]
+        + ["-o", str(tmp_path / "u"), "--quiet", "--json"]
+    )
+    assert code == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["integrator"] == "rattle+uniform" and summary["steps"] == 8
+    assert summary["energy_samples"] >= 4 and summary["max_abs_residual"] < 1e-3  # H held at E_ref, kJ/mol
+    assert summary["rescaling"]["rescalings"] == 8

@@ -71,9 +71,10 @@ class UnknownIntegratorError(InputError):
 class IntegratorSpec:
     """A parsed integrator name.
 
-    ``kind`` is the family's word (rattle, alpha, energy, split, verlet), or ``rescale`` for
-    a rescaled base; ``order`` the digit (2 without); ``composition`` and ``splitting`` the
-    set named after ``:`` (``splitting`` also for ``split`` without one: its default).
+    ``kind`` is the family's word (rattle, alpha, energy, split, verlet), or the layer's
+    (``rescale``) for a base with a way of holding the energy over it (``layer``); ``order``
+    the digit (2 without); ``composition`` and ``splitting`` the set named after ``:``
+    (``splitting`` also for ``split`` without one: its default).
     """
 
     kind: str
@@ -83,6 +84,7 @@ class IntegratorSpec:
     composition: str | None = None
     rescale_interval: int = 1
     splitting: str | None = None
+    layer: str | None = None
 
     @property
     def name(self) -> str:
@@ -92,7 +94,7 @@ class IntegratorSpec:
     @property
     def family(self) -> Family:
         """The family of the base step (``split`` for a rescaled splitting, else ``rattle``)."""
-        if self.kind != "rescale":
+        if self.layer is None:
             return FAMILIES[self.kind]
         return FAMILIES["split" if self.splitting is not None else "rattle"]
 
@@ -187,17 +189,6 @@ def _make_rattle(spec: IntegratorSpec, timestep: unit.Quantity, tolerance: float
     )
 
 
-def _make_rescale(spec: IntegratorSpec, timestep: unit.Quantity, tolerance: float) -> mm.Integrator:
-    return RattleRescaleIntegrator(
-        timestep,
-        constraint_tolerance=tolerance,
-        order=spec.order,
-        composition=spec.composition,
-        rescale_interval=spec.rescale_interval,
-        splitting=spec.splitting,
-    )
-
-
 def _make_split(spec: IntegratorSpec, timestep: unit.Quantity, tolerance: float) -> mm.Integrator:
     return SplittingRattleIntegrator(
         timestep,
@@ -238,9 +229,7 @@ FAMILIES: dict[str, Family] = {
             "RATTLE",
             "RattleIntegrator: velocity Verlet with SHAKE/SETTLE and RATTLE velocities, 1 force evaluation "
             "per step; rattle4, rattle6: a composition of RATTLE steps of that order (one evaluation per "
-            "stage); +rescale: RattleRescaleIntegrator, the velocities relative to the rigid-body motion "
-            "then scaled so that H = E_ref, every step or every N-th step (rattle+rescale@10), the "
-            "energy read with the last force",
+            "stage)",
             _make_rattle,
             orders=(2, 4, 6),
             sets=COMPOSITIONS,
@@ -273,15 +262,72 @@ FAMILIES: dict[str, Family] = {
             "SplittingRattleIntegrator, the explicit alpha-family: split=<alpha> is kick((1/2-alpha)h) "
             "drift(h/2) kick(2 alpha h) drift(h/2) kick((1/2-alpha)h) with constraints (split=1/4 is RATTLE "
             "at h/2), split:SPLITTING a named splitting (split:me2, the minimum-error member, is the "
-            "default), one force evaluation per stage, no iteration; +rescale as for rattle",
+            "default), one force evaluation per stage, no iteration",
             _make_split,
             sets=SPLITTINGS,
             alpha="optional",
             rescalable=True,
         ),
-        Family("verlet", "VerletIntegrator", f"openmm.VerletIntegrator ({VERLET_IS_LEAPFROG})", _make_verlet),
+        Family("verlet", "VerletIntegrator", VERLET_IS_LEAPFROG, _make_verlet),
     )
 }
+
+
+@dataclass(frozen=True)
+class Layer:
+    """A way of holding the energy over a base step, written ``+WORD[@N]`` after it.
+
+    Attributes
+    ----------
+    word
+        The word after ``+``.
+    cls
+        The integrator class: takes the base as ``order``/``composition`` or ``splitting``
+        and the interval as ``rescale_interval`` (as :class:`~openmm_alphaprk.RattleRescaleIntegrator`).
+    title
+        The label's last words (``rescaling``).
+    help
+        What it does, for ``--help``.
+    """
+
+    word: str
+    cls: type[RattleRescaleIntegrator]
+    title: str
+    help: str
+
+    def make(self, spec: IntegratorSpec, timestep: unit.Quantity, tolerance: float) -> mm.Integrator:
+        """Create the layer over the base ``spec`` names."""
+        return self.cls(
+            timestep,
+            constraint_tolerance=tolerance,
+            order=spec.order,
+            composition=spec.composition,
+            rescale_interval=spec.rescale_interval,
+            splitting=spec.splitting,
+        )
+
+
+#: The ways of holding the energy over a base (``+rescale[@N]``), by word.
+LAYERS: dict[str, Layer] = {}
+
+
+def register_layer(layer: Layer) -> Layer:
+    """Add a way of holding the energy to the grammar (``BASE+WORD[@N]``); return it."""
+    if layer.word in LAYERS and LAYERS[layer.word] != layer:
+        raise InputError(f"a layer {layer.word!r} exists already; give the new one another word.")
+    LAYERS[layer.word] = layer
+    return layer
+
+
+register_layer(
+    Layer(
+        "rescale",
+        RattleRescaleIntegrator,
+        "rescaling",
+        "RattleRescaleIntegrator: after the base step the velocities relative to the rigid-body motion "
+        "are scaled so that H = E_ref, every step or every N-th step (+rescale@10)",
+    )
+)
 
 #: Names from before the grammar, and the canonical names they are read as.
 ALIASES = {
@@ -302,7 +348,8 @@ def _integrator_help() -> str:
         f"{library.what.upper()} one of {', '.join(library)}" for library in (COMPOSITIONS, SPLITTINGS)
     )
     families = "; ".join(f"{family.form} = {family.help}" for family in FAMILIES.values())
-    return f"BASE[:SET][=alpha][+rescale[@N]], the digit the order: {families}; {sets}"
+    layers = "; ".join(f"+{layer.word}[@N] = {layer.help}" for layer in LAYERS.values())
+    return f"BASE[:SET][=alpha][+rescale[@N]], the digit the order: {families}; {layers}; {sets}"
 
 
 #: One line per family and the named sets, for ``--help``.
@@ -352,22 +399,26 @@ def parse_integrator(text: str | IntegratorSpec) -> IntegratorSpec:
     if isinstance(text, IntegratorSpec):
         return text
     cleaned = _canonical_text(re.sub(r"\s+", "", str(text)).lower())
-    base, plus, layer = cleaned.partition("+")
+    base, plus, layer_text = cleaned.partition("+")
     interval = None
+    layer = None
     if plus:
-        found = re.fullmatch(r"rescale(?:@(.*))?", layer)
-        if found is None:
+        found = re.fullmatch(r"([a-z]+)(?:@(.*))?", layer_text)
+        layer = LAYERS.get(found.group(1)) if found else None
+        if layer is None:
             raise _unknown(
-                text, f"{'+' + layer!r} is not a way of holding the energy; the one is +rescale[@N]"
+                text,
+                f"{'+' + layer_text!r} is not a way of holding the energy; use "
+                + " or ".join(f"+{word}[@N]" for word in LAYERS),
             )
-        if found.group(1) is not None:
-            if not re.fullmatch(r"[0-9]+", found.group(1)) or int(found.group(1)) < 1:
+        if found.group(2) is not None:
+            if not re.fullmatch(r"[0-9]+", found.group(2)) or int(found.group(2)) < 1:
                 raise _unknown(
                     text,
                     "the rescaling interval after '@' must be a positive integer, the rescaling every N-th "
                     "step (rattle+rescale@10)",
                 )
-            interval = int(found.group(1))
+            interval = int(found.group(2))
     elif "@" in base:
         raise _unknown(text, "only a rescaled name takes an interval @N (rattle+rescale@10)")
     head, equals, number = base.partition("=")
@@ -408,21 +459,24 @@ def parse_integrator(text: str | IntegratorSpec) -> IntegratorSpec:
     if family.word == "split" and alpha is None and splitting is None:
         splitting = MINIMUM_ERROR2.name
         base = f"split:{splitting}"
-    if plus and not family.rescalable:
+    if layer is not None and not family.rescalable:
         raise _unknown(
-            text, f"+rescale follows rattle (and its compositions) or a splitting, not {family.word}"
+            text, f"+{layer.word} follows rattle (and its compositions) or a splitting, not {family.word}"
         )
-    if plus and alpha is not None:
-        raise _unknown(text, "+rescale follows a named splitting (split:me2+rescale), not split=<alpha>")
-    rescaled = "+rescale" + (f"@{interval}" if interval and interval > 1 else "") if plus else ""
+    if layer is not None and alpha is not None:
+        raise _unknown(
+            text, f"+{layer.word} follows a named splitting (split:me2+{layer.word}), not split=<alpha>"
+        )
+    held = f"+{layer.word}" + (f"@{interval}" if interval and interval > 1 else "") if layer else ""
     return IntegratorSpec(
-        "rescale" if plus else family.word,
+        layer.word if layer else family.word,
         alpha,
-        text=base + rescaled,
+        text=base + held,
         order=order,
         composition=composition,
         rescale_interval=interval or 1,
         splitting=splitting,
+        layer=layer.word if layer else None,
     )
 
 
@@ -448,10 +502,9 @@ def label(spec: str | IntegratorSpec) -> str:
             text += f" α = {spec.name.partition('=')[2]}"
         elif spec.kind == "energy":
             text += " energy mode"
-    if spec.kind == "rescale":
-        text += " + rescaling" + (
-            f" every {spec.rescale_interval} steps" if spec.rescale_interval > 1 else ""
-        )
+    if spec.layer is not None:
+        every = f" every {spec.rescale_interval} steps" if spec.rescale_interval > 1 else ""
+        text += f" + {LAYERS[spec.layer].title}{every}"
     return text
 
 
@@ -467,8 +520,9 @@ def make_integrator(
     spec = parse_integrator(spec)
     if not unit.is_quantity(timestep):
         timestep = timestep * unit.picoseconds
-    make = _make_rescale if spec.kind == "rescale" else spec.family.make
-    return make(spec, timestep, constraint_tolerance)
+    if spec.layer is not None:
+        return LAYERS[spec.layer].make(spec, timestep, constraint_tolerance)
+    return spec.family.make(spec, timestep, constraint_tolerance)
 
 
 def example_names() -> tuple[str, ...]:
@@ -546,7 +600,11 @@ def check_compatible(
         f"use verlet (openmm.VerletIntegrator, any platform): `alphaprk run {shown} verlet` or "
         f"`alphaprk compare {shown} -i verlet`"
     )
-    if spec.kind in ("rattle", "rescale", "split") or (spec.kind == "alpha" and spec.alpha == 0.0):
+    if (
+        spec.kind in ("rattle", "split")
+        or spec.layer is not None
+        or (spec.kind == "alpha" and spec.alpha == 0.0)
+    ):
         reason = (
             f"on the {platform} platform OpenMM places virtual sites only at the end of a CustomIntegrator "
             "step, so forces inside the step would see stale sites. Instead run it with --platform CUDA, "
