@@ -439,7 +439,7 @@ class _StepProgram(mm.CustomIntegrator):
             self._add_velocity_update(f"{after!r}*f", h)
 
     def _add_leading_substeps(self, composition: Composition) -> None:
-        """Take the RATTLE stages before the first stage with α, from the step's start (F(x0) in ``fstart``)."""
+        """Take the RATTLE stages before the first α stage from the step's start (F(x0) in ``fstart``)."""
         self._add_substeps(composition.substeps()[: composition.first_alpha_stage - 1], first_force="fstart")
 
     def _add_alpha_substeps_start(self, composition: Composition, need_midpoint: str, **copies: str) -> None:

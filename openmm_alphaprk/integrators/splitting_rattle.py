@@ -16,7 +16,8 @@ and the three-stage sets, are in :mod:`~.splittings`.
 The program is a sequence of constrained sub-steps (:meth:`~.splittings.Splitting.substeps`),
 each a position solve followed by its constraint step and a velocity update with its
 projection, built from the pieces RATTLE's step is built from
-(:meth:`~.pieces._StepProgram._add_substeps`, the emitter of every explicit base step). Every force is read after the
+(:meth:`~.pieces._StepProgram._add_substeps`, the emitter of every explicit base step).
+Every force is read after the
 constraint step of the positions it is taken at, and each solve projects along the
 positions of the previous constraint step, the sub-step's start: the program is the same
 map on Reference, CPU and the common platform (CUDA, OpenCL, HIP), and virtual sites are
