@@ -46,7 +46,7 @@ def _validation() -> dict[Path, dict[str, str]]:
 #: Every generator: its name and what it renders, by page and block name.
 GENERATORS: dict[str, Callable[[], dict[Path, dict[str, str]]]] = {
     "guide": guide.render,
-    "main job": lambda: {page: main_job.blocks() for page in main_job.PAGES},
+    "main job": main_job.pages,
     "accuracy": accuracy.render,
     "compositions": compositions.render,
     "benchmarks": md_benchmark.render,

@@ -12,8 +12,9 @@ made relative) and writes ``docs/data/main_job/timing.json``: the wall-clock sec
 command in each run given, the platform, and the command. ``suite`` writes
 ``docs/data/main_job/test_suite.json``: the default suite's test count and its time in
 clean-clone runs (pytest's own time) and on a machine's first run (pocl compiling). The
-blocks ``main job`` and ``test suite`` of ``README.md`` and ``docs/getting_started.md`` are
-rendered from them, with the machine and day (``docs/data/provenance.toml``).
+block ``main job`` of ``README.md`` and ``docs/getting_started.md`` and the block ``test
+suite`` of the latter are rendered from them (:func:`pages`, part of ``python -m
+tools.reports``).
 """
 
 from __future__ import annotations
@@ -25,15 +26,14 @@ import sys
 from pathlib import Path
 
 from openmm_alphaprk.observables import drift_text
-from tools.reports.markdown import markdown_table
-from tools.reports.sources import DATA, ROOT, load
+from tools.reports.markdown import Column, table
+from tools.reports.sources import DATA, ROOT, load, provenance_line
 
 COMPARISON = "main_job/comparison.json"
 TIMING = "main_job/timing.json"
 SUITE = "main_job/test_suite.json"
 BLOCK = "main job"
 SUITE_BLOCK = "test suite"
-PAGES = (ROOT / "README.md", ROOT / "docs" / "getting_started.md")
 
 
 def _sci(value: float) -> str:
@@ -47,52 +47,51 @@ def _minutes(seconds: float) -> str:
     return f"{minutes} min {rest} s" if minutes else f"{rest} s"
 
 
-def render() -> str:
-    """Return the block: when and where the main job ran, its table (recommended rows first), its verdict."""
+def _drift(row: dict) -> str:
+    return drift_text(row["drift_per_dof"], row["drift_per_dof_standard_error"])
+
+
+def render(link: str = "data/") -> str:
+    """Return the block: when and where the main job ran, its table, and the verdict it printed."""
     comparison, source = load(COMPARISON)
     timing, _ = load(TIMING)
-    summaries = comparison["summaries"]
-    first = summaries[0]
+    first = comparison["summaries"][0]
     accuracy = comparison["accuracy"]["rows"]
-    after = next(iter(accuracy.values()))["time_fs"] if accuracy else None
-    times = ", ".join(_minutes(s) for s in timing["wall_seconds"])
-    lead = (
-        f"`{timing['command']}` on {source.date}, {source.machine}, {timing['platform']} platform "
-        f"(the fastest present there): {times} in {len(timing['wall_seconds'])} runs from a fresh clone "
-        f"(install excluded). {first['system']}: {first['n_atoms']} atoms, {first['timestep_fs']:g} fs, "
-        f"{first['steps']} steps ({first['simulated_ps']:g} ps) of each integrator from the shipped start; "
-        f"RATTLE at h/k for every row of k force evaluations per step; positions against RATTLE at h/64 "
-        f"after {after:g} fs. Data: {source.cite()}."
+    after = next(iter(accuracy.values()))["time_fs"]
+    caption = provenance_line(
+        [source],
+        f"`{timing['command']}`, {timing['platform']} platform (the fastest present there), wall time "
+        f"{' / '.join(_minutes(s) for s in timing['wall_seconds'])} in runs from a fresh clone (install "
+        f"excluded); {first['system']} ({first['n_atoms']} atoms), {first['timestep_fs']:g} fs, "
+        f"{first['steps']} steps of each integrator from the shipped start; RATTLE at h/k for every row "
+        "of k force evaluations per step; positions against RATTLE at h/64",
+        link,
     )
-    header = ["integrator", "evaluations/step", "RMS(H − E_ref) kJ/mol", "drift kJ/mol/ns/DOF"]
-    if accuracy:
-        header.append(f"position error after {after:g} fs (nm)")
-    rows = []
-    for summary in summaries:
-        name = summary["integrator"]
-        row = [
-            f"`{name}`",
-            f"{summary['force_evaluations_per_step']:.2f}",
-            _sci(summary["rms_residual"]),
-            drift_text(summary["drift_per_dof"], summary["drift_per_dof_standard_error"]),
-        ]
-        if accuracy:
-            row.append(_sci(accuracy[name]["position_rms"]) if name in accuracy else "–")
-        rows.append(row)
-    return "\n\n".join([lead, markdown_table(header, rows), f"**{comparison['verdict']}**"])
+    columns = [
+        Column("integrator", lambda r: f"`{r['integrator']}`"),
+        Column("evaluations/step", lambda r: f"{r['force_evaluations_per_step']:.2f}"),
+        Column("RMS(H − E_ref) kJ/mol", lambda r: _sci(r["rms_residual"])),
+        Column(
+            "drift kJ/mol/ns/DOF", lambda r: drift_text(r["drift_per_dof"], r["drift_per_dof_standard_error"])
+        ),
+        Column(
+            f"position error after {after:g} fs (nm)",
+            lambda r: _sci(accuracy[r["integrator"]]["position_rms"]) if r["integrator"] in accuracy else "–",
+        ),
+    ]
+    return table(comparison["summaries"], columns, caption) + f"\n\n**{comparison['verdict']}**"
 
 
-def render_suite() -> str:
-    """Return the test suite's sentence: its size and its time from clean clones and on a first run."""
+def render_suite(link: str = "data/") -> str:
+    """Return the test suite's table: its size, its time from clean clones and on a first run."""
     suite, source = load(SUITE)
-    runs = ", ".join(_minutes(s) for s in suite["wall_seconds"])
-    return (
-        f"The default suite ({suite['tests']} tests, the package's doctests among them) runs in "
-        f"parallel, one process per core (pytest-xdist; `-n 0` runs it in one process): {runs} in "
-        f"{len(suite['wall_seconds'])} runs from a clean clone on {source.machine}, "
-        f"{_minutes(suite['first_run_seconds'])} on a machine's first run, while pocl compiles (and "
-        f"caches) the OpenCL kernels. Data: {source.cite()}."
-    )
+    columns = [
+        Column("tests (doctests among them)", lambda s: str(s["tests"])),
+        Column("clean clone", lambda s: " / ".join(_minutes(t) for t in s["wall_seconds"])),
+        Column("a machine's first run (pocl compiling)", lambda s: _minutes(s["first_run_seconds"])),
+    ]
+    caption = provenance_line([source], "`python -m pytest`, pytest's own time", link)
+    return table([suite], columns, caption)
 
 
 def record_suite(tests: int, seconds: list[float], first_run: float) -> None:
@@ -101,9 +100,12 @@ def record_suite(tests: int, seconds: list[float], first_run: float) -> None:
     (DATA / SUITE).write_text(json.dumps(suite, indent=2) + "\n", encoding="utf-8")
 
 
-def blocks() -> dict[str, str]:
-    """Return the generated blocks of the README and getting started, by name."""
-    return {BLOCK: render(), SUITE_BLOCK: render_suite()}
+def pages() -> dict[Path, dict[str, str]]:
+    """Return the generated blocks of the README (the main job) and getting started (and the suite)."""
+    return {
+        ROOT / "README.md": {BLOCK: render("docs/data/")},
+        ROOT / "docs" / "getting_started.md": {BLOCK: render(), SUITE_BLOCK: render_suite()},
+    }
 
 
 def record(run: Path, seconds: list[float], platform: str, command: str = "alphaprk compare") -> None:
