@@ -333,19 +333,21 @@ def stress_table(data: dict, gaps: tuple[tuple[str, str, str, str], ...]) -> str
             )
     header = ["row", "gap", "first window (K)", "last window (K)", "trend (K per 100 ps)", "spread (K)"]
     windows = next(iter(data["stress"].values()))["windows"]
-    energy = []
-    for name, run in data["stress"].items():
-        summary = run.get("summary")
-        if not summary:
-            continue
-        dof = summary["degrees_of_freedom"]
-        drift, error = summary["drift_per_dof"] * dof, summary["drift_per_dof_standard_error"] * dof
-        added = summary["rescaling"].get("added_energy_per_ns") if summary["rescaling"] else None
-        energy.append(
-            f"`{name.rpartition('@')[0]}`: H drifts {_signed(drift, error)} kJ/mol/ns"
-            + ("" if added is None else f", the scaling added {added:+.3g} kJ/mol/ns")
-        )
-    energy_text = ("\n\nOver each whole run: " + "; ".join(energy) + ".") if energy else ""
+    energy = [
+        [
+            f"`{name.rpartition('@')[0]}`",
+            _signed(summary["drift_per_dof"] * dof, summary["drift_per_dof_standard_error"] * dof),
+            "-" if not summary["rescaling"] else f"{summary['rescaling']['added_energy_per_ns']:+.3g}",
+        ]
+        for name, run in data["stress"].items()
+        if (summary := run.get("summary")) and (dof := summary["degrees_of_freedom"])
+    ]
+    energy_text = (
+        "\n\nOver each whole run:\n\n"
+        + markdown_table(["row", "drift of H (kJ/mol/ns)", "energy the scaling added (kJ/mol/ns)"], energy)
+        if energy
+        else ""
+    )
     return (
         markdown_table(header, rows)
         + (
