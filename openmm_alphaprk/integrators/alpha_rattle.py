@@ -32,8 +32,6 @@ from .compositions import Composition, requested_composition
 from .pieces import (
     DEFAULT_CONSTRAINT_TOLERANCE,
     _StepProgram,
-    first_forces,
-    last_forces,
 )
 from .variables import (
     ALPHA,
@@ -318,32 +316,9 @@ class AlphaRattleIntegrator(_AlphaRattleBase):
 
     # ---------------------------------------------------------------- programs
     def _build_program(self) -> None:
-        """Order 2, fixed α: RATTLE at α = 0, else a loop of solves and midpoint forces.
-
-        At α = 0 the step is the RATTLE block, the same computations as
-        :class:`~.rattle.RattleIntegrator`; its kernels read no global variable, so on CUDA,
-        OpenCL and HIP the step needs no upload of globals to the device (each is a
-        synchronisation with the host). The α ≠ 0 block follows it in program text,
-        so that its midpoint assignment comes after every constraint step.
-        """
+        """Order 2, fixed α: the α-RATTLE step (:meth:`~.pieces._StepProgram._add_alpha_step`)."""
         self._add_save_step_start(fstart="f", fmid="f")
-        self._add_midpoint_setup("1")
-        self.beginIfBlock("alpha = 0")
-        self._add_position_solve("0.5*f")
-        self._add_velocity_update("0.5*f")
-        self.endBlock()
-        self.beginIfBlock("alpha != 0")
-        self.addComputeGlobal("solving", "1")
-        self.beginWhileBlock("solving > 0.5")
-        self.addComputeGlobal("solving", "0")
-        self._add_position_solve(first_forces("alpha"), "dt", fallback="x0")
-        self.beginIfBlock("need_midpoint > 0.5")
-        self._add_midpoint_force("dt", "alpha")
-        self.addComputeGlobal("solving", "1")
-        self.endBlock()
-        self.endBlock()
-        self._add_velocity_update(last_forces("alpha"), "dt", fallback="v0")
-        self.endBlock()
+        self._add_alpha_step(None)
         self._add_midpoint_end_step()
 
     def _build_composition_program(self) -> None:
@@ -355,11 +330,8 @@ class AlphaRattleIntegrator(_AlphaRattleBase):
         assignment in program text. A failed midpoint iteration makes every remaining
         sub-step return the state the step started from.
         """
-        composition = self._composition
         self._add_save_step_start(xstep="x", vstep="v", fstart="f")
-        self._add_leading_substeps(composition)
-        self._add_alpha_substeps_start(composition, "1 - delta(alpha)", fmid="f")
-        self._add_composition_loop(composition)
+        self._add_alpha_step(self._composition)
         self._add_midpoint_end_step()
 
 

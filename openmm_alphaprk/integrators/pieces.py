@@ -85,6 +85,7 @@ from ..errors import (  # defined there; importable from here too
 )
 from ..smooth_forces import outside_stacklevel
 from .compositions import COMPOSITIONS, Composition
+from .splittings import RATTLE
 from .stage_sets import Library, StageSet, SubStep
 from .variables import (
     ALPHA,
@@ -441,6 +442,41 @@ class _StepProgram(mm.CustomIntegrator):
     def _add_leading_substeps(self, composition: Composition) -> None:
         """Take the RATTLE stages before the first α stage from the step's start (F(x0) in ``fstart``)."""
         self._add_substeps(composition.substeps()[: composition.first_alpha_stage - 1], first_force="fstart")
+
+    def _add_alpha_step(self, composition: Composition | None, first_force: str = "f") -> None:
+        """Take the α-RATTLE step (or a composition with α) from x0, v0, F(x0) in ``first_force``.
+
+        The implicit base step: the explicit sub-steps of :meth:`_add_substeps` with the
+        midpoint loop added. One step: at α = 0 the RATTLE block, the same computations as
+        :class:`~.rattle.RattleIntegrator`'s (its kernels read no global, so on CUDA, OpenCL
+        and HIP it needs no upload of globals); the α ≠ 0 block follows it in program text,
+        a loop of solves and midpoint forces, so that its midpoint assignment comes after
+        every constraint step. ``fmid`` must hold F(x0) and ``fstart`` too (``first_force``
+        is one of them or ``f``). A composition: its stages before the first α stage, then
+        one loop over the rest (:meth:`_add_composition_loop`), ``xstep``, ``vstep`` holding
+        the step's start. A failed midpoint iteration returns the step's start.
+        """
+        if composition is not None:
+            self._add_leading_substeps(composition)
+            self._add_alpha_substeps_start(composition, "1 - delta(alpha)", fmid="f")
+            self._add_composition_loop(composition)
+            return
+        self._add_midpoint_setup("1")
+        self.beginIfBlock("alpha = 0")
+        self._add_substeps(RATTLE.substeps(), first_force)
+        self.endBlock()
+        self.beginIfBlock("alpha != 0")
+        self.addComputeGlobal("solving", "1")
+        self.beginWhileBlock("solving > 0.5")
+        self.addComputeGlobal("solving", "0")
+        self._add_position_solve(first_forces("alpha"), "dt", fallback="x0")
+        self.beginIfBlock("need_midpoint > 0.5")
+        self._add_midpoint_force("dt", "alpha")
+        self.addComputeGlobal("solving", "1")
+        self.endBlock()
+        self.endBlock()
+        self._add_velocity_update(last_forces("alpha"), "dt", fallback="v0")
+        self.endBlock()
 
     def _add_alpha_substeps_start(self, composition: Composition, need_midpoint: str, **copies: str) -> None:
         """Start the first stage with α here; the loop then takes it and every stage after it."""
