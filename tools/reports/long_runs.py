@@ -7,9 +7,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from tools.reports.markdown import markdown_table
+from tools.reports.markdown import Column, markdown_table, table
 from tools.reports.numbers import sig, times, two
-from tools.reports.sources import DOCS, Source, load
+from tools.reports.sources import DOCS, load, pick, provenance_line
 
 PAGE = DOCS / "long_runs.md"
 CUDA = "long_runs/cuda_h100/"
@@ -26,10 +26,6 @@ CPU = "long_runs/cpu_tip3p-2nm.json"
 CPU_BEFORE = "long_runs/cpu_tip3p-2nm_energy4_before.json"
 #: Goals of the rescaling's cost on CUDA (mixed): step time against RATTLE's, by atoms.
 GOALS = {"21,384": 1.35, "72,279": 1.25}
-
-
-def _measured(source: Source) -> str:
-    return f"{source.machine}, {source.date} (commit {source.commit}); data `docs/data/{source.path}`"
 
 
 def _drift(row: dict) -> str:
@@ -72,7 +68,7 @@ def long_table(path: str, speed: bool = True) -> str:
         if speed:
             cells += _speed(row, rattle)
         table.append(cells)
-    return f"{entry['header']}. Measured on {_measured(source)}.\n\n" + markdown_table(header, table)
+    return provenance_line([source], entry["header"]) + "\n\n" + markdown_table(header, table)
 
 
 def energy_mode_windows(path: str) -> str:
@@ -124,49 +120,51 @@ def precision_table() -> str:
     header = ["integrator"] + [
         f"{p} {what}" for p in CONCURRENT for what in ("ps", "drift kJ/mol/ns/DOF", "RMS kJ/mol")
     ]
-    return (
-        f"tip3p-3nm, 2 fs, CUDA; twelve runs at once on one GPU, each stopped after 260 s, so the lengths "
-        f"differ and no speed is given. Measured on {_measured(sources[0])}; single precision "
-        f"`docs/data/{sources[1].path}`.\n\n" + markdown_table(header, table)
+    run = (
+        "tip3p-3nm, 2 fs, CUDA; twelve runs at once on one GPU, each stopped after 260 s, so the "
+        "lengths differ and no speed is given"
     )
+    return provenance_line(sources, run) + "\n\n" + markdown_table(header, table)
 
 
 def cost_table() -> str:
     """Step times of every row against RATTLE's (and α-RATTLE-4's), CUDA mixed, by system."""
     loaded = {atoms: load(path) for atoms, path in COST.items()}
-    wanted = [
-        ("verlet", "VerletIntegrator", "rattle"),
-        ("rattle", "RATTLE", "verlet"),
-        ("rattle+rescale", "RATTLE + rescaling", "rattle"),
-        ("rattle+rescale@10", "RATTLE + rescaling every 10 steps", "rattle"),
-        ("alpha4=0", "α-RATTLE-4 α = 0", "rattle"),
-        ("rattle4+rescale", "RATTLE-4 + rescaling", "alpha4=0"),
-        ("rattle4+rescale@10", "RATTLE-4 + rescaling every 10 steps", "alpha4=0"),
-        ("energy4", "α-RATTLE-4 energy mode", "alpha4=0"),
-    ]
-    labels = {label: name for name, label, _ in wanted}
-    table = []
-    for name, _, against in wanted:
-        cells = [f"`{name}`", f"`{against}`"]
-        for atoms, (data, _) in loaded.items():
-            rows = {labels.get(r["name"], r["name"]): r for r in data["rows"]}
-            row, base = rows.get(name), rows.get(against)
-            if row is None or base is None:
-                cells.append("-")
-                continue
-            ratio = row["ms_per_step"] / base["ms_per_step"]
+    #: Each row and the row it is timed against.
+    wanted = {
+        "verlet": "rattle",
+        "rattle": "verlet",
+        "rattle+rescale": "rattle",
+        "rattle+rescale@10": "rattle",
+        "alpha4=0": "rattle",
+        "rattle4+rescale": "alpha4=0",
+        "rattle4+rescale@10": "alpha4=0",
+        "energy4": "alpha4=0",
+    }
+
+    def cell(atoms: str, rows: list[dict]):
+        def text(name: str) -> str:
+            try:
+                row, base = pick(rows, name), pick(rows, wanted[name])
+            except LookupError:
+                return "-"
             goal = GOALS.get(atoms) if name == "rattle+rescale" else None
             mark = f" (goal ≤ {goal})" if goal else ""
-            cells.append(f"{ratio:.2f}× · {row['ns_per_day']:,.0f}{mark}")
-        table.append(cells)
-    first = next(iter(loaded.values()))[1]
-    header = ["integrator", "against"] + [f"{atoms} atoms: step ratio · ns/day" for atoms in loaded]
-    return (
+            return f"{row['ms_per_step'] / base['ms_per_step']:.2f}× · {row['ns_per_day']:,.0f}{mark}"
+
+        return text
+
+    columns = [Column("integrator", lambda n: f"`{n}`"), Column("against", lambda n: f"`{wanted[n]}`")]
+    columns += [
+        Column(f"{atoms} atoms: step ratio · ns/day", cell(atoms, data["rows"]))
+        for atoms, (data, _) in loaded.items()
+    ]
+    run = (
         "`alphaprk bench cost --platform CUDA --precision mixed --steps 200 --rounds 3` on each system, "
         "2 fs, every row of a system in one run, median of 3 interleaved rounds, each timed between two "
-        f"device synchronisations; TIP3P boxes of 3, 6 and 9 nm and `dhfr`. Measured on {_measured(first)} "
-        f"(and the files beside it).\n\n" + markdown_table(header, table)
+        "device synchronisations; TIP3P boxes of 3, 6 and 9 nm and `dhfr`"
     )
+    return table(wanted, columns, provenance_line([source for _, source in loaded.values()], run))
 
 
 def openmm_dhfr_table() -> str:
@@ -183,11 +181,10 @@ def openmm_dhfr_table() -> str:
         for row in data["rows"]
     ]
     header = ["integrator", "ms/step", "ns/day", "× LangevinMiddle", "× Verlet"]
-    return (
-        f"{data['header']}. `python tools/scripts/dhfr_openmm_settings.py --platform CUDA --precision "
-        "mixed`, "
-        f"measured on {_measured(source)}.\n\n" + markdown_table(header, table)
+    run = (
+        f"{data['header']}; `python tools/scripts/dhfr_openmm_settings.py --platform CUDA --precision mixed`"
     )
+    return provenance_line([source], run) + "\n\n" + markdown_table(header, table)
 
 
 def render() -> dict[Path, dict[str, str]]:

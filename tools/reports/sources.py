@@ -35,10 +35,6 @@ class Source:
     commit: str
     machine: str
 
-    def cite(self) -> str:
-        """Return how a page names it: ``docs/data/PATH, measured DATE (commit COMMIT)``."""
-        return f"`docs/data/{self.path}`, {self.date} (commit {self.commit})"
-
 
 @cache
 def provenance() -> dict:
