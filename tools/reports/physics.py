@@ -12,7 +12,7 @@ import numpy as np
 
 from tools.reports.markdown import markdown_table
 from tools.reports.numbers import sig
-from tools.reports.sources import DOCS, Source, load
+from tools.reports.sources import DOCS, Source, load, provenance_line
 
 PAGE = DOCS / "physics.md"
 WATER = "physics/tip3p-2nm.json"
@@ -56,11 +56,7 @@ def _provenance(source: Source, data: dict) -> str:
         a = arguments["order"]
         parts.append(f"order: {a['length']:g} ps at " + ", ".join(f"{h:g}" for h in a["timesteps"]) + " fs")
     platform = next(iter(arguments.values()))["platform"]
-    return (
-        f"{data['system']}, {platform} platform, {source.machine}, {source.date} (commit {source.commit}); "
-        + "; ".join(parts)
-        + f". Data: `docs/data/{source.path}`."
-    )
+    return provenance_line([source], "; ".join([f"{data['system']}, {platform} platform", *parts]))
 
 
 def _label(setting: str) -> str:
