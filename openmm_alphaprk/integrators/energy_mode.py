@@ -111,13 +111,12 @@ from .variables import (
 #: Steps after which an energy mode never shown its Context reads its own record (``_diagnose``).
 DIAGNOSIS_STEPS = 200
 #: A composition's energy mode whose steps ended outside the tolerance more often than this says
-#: its forces are not smooth. Measured on tip3p-2nm (CPU, order 4, 300 steps): 0.12 with smooth
-#: forces, 0.99 with OpenMM's defaults (no LJ switch or no tight Ewald tolerance).
+#: its forces are not smooth: with smooth forces few steps end outside it, with OpenMM's defaults
+#: (no LJ switch, or no tight Ewald tolerance) nearly all (the measurements: docs/energy_mode.md).
 NON_SMOOTH_FALLBACK_FRACTION = 0.5
 #: The energy mode warns that it cannot hold the energy once at least this many of its steps, and
-#: at least :data:`ALPHA_ZERO_WARN_FRACTION` of them, were α = 0 steps. Measured on tip3p-2nm
-#: (CPU, order 4, 2 fs, smooth forces; 2026-11-27): 8 % of the first 100 steps, 4.5 % of 600,
-#: where the energy is held; villin at 4 fs without repartitioned hydrogens: 25 % of 40 steps.
+#: at least :data:`ALPHA_ZERO_WARN_FRACTION` of them, were α = 0 steps: above the few per cent of
+#: a run that holds the energy, below a run that cannot (the measurements: docs/energy_mode.md).
 ALPHA_ZERO_WARN_STEPS = 5
 ALPHA_ZERO_WARN_FRACTION = 0.2
 
@@ -171,7 +170,7 @@ class AlphaRattleEnergyIntegrator(_ReferenceEnergy, _AlphaRattleBase):
     midpoint_tolerance : openmm.unit.Quantity or float, optional
         Stopping tolerance of the midpoint iteration (nm, RMS change of x1 per degree of
         freedom). Default with a periodic box 1e-7 nm (order 2) or 1e-5 nm (a
-        composition, where α* is ~100× smaller): there it only limits how well angular
+        composition, where α* is O(h²), far smaller): there it only limits how well angular
         momentum is kept (ΔL ≈ 2hα δx_m × F per step), which a periodic box does not
         conserve anyway, and the energy is measured on the state the step ends in;
         without a periodic box 1e-13 nm, set by :meth:`check_context`, which keeps
@@ -472,7 +471,7 @@ class AlphaRattleEnergyIntegrator(_ReferenceEnergy, _AlphaRattleBase):
         the last sub-step's energy change ΔE_last measured by the step's latest full
         trial (at α_f), corrected by c (α − α_f) (:meth:`_add_last_substep_fit`):
         a new α changes the middle sub-step's end velocities by h Δα (F(x_m) −
-        F(x2))/m, about 1 % of thermal velocities, and ΔE_last follows. Once α stops,
+        F(x2))/m, small beside thermal velocities, and ΔE_last follows. Once α stops,
         the last sub-step is taken at that α (the trial is *completed*) and its
         measured residual decides: within tolerance, or out of trials, the step ends;
         else another short trial starts from it.
@@ -495,8 +494,8 @@ class AlphaRattleEnergyIntegrator(_ReferenceEnergy, _AlphaRattleBase):
         that follows another in its step (a completed short trial, and during the
         predictor's warm-up, when every trial is full) measures the change over
         Δα = α − α_f; c is the weighted least-squares slope of these pairs, with the
-        predictor's forgetting factor, kept across steps (measured: c ≈ 0.3 kJ/mol per
-        unit α on a 774-atom water box, ≈ 110 on villin, steady along a run).
+        predictor's forgetting factor, kept across steps (c is steady along a run and
+        depends on the system: docs/research/short_trials.md).
         """
         change = "(substep_energy - middle_end_energy - last_substep_change)"
         moved = "(alpha - alpha_full)"
@@ -608,12 +607,9 @@ class AlphaRattleEnergyIntegrator(_ReferenceEnergy, _AlphaRattleBase):
         α = 0 step, estimated, and it moves the running mean of H − E_ref (``residual_mean``) towards 0
         (:meth:`_add_trial_end`): a step set near E_ref where the base's energy error is at
         a peak of its oscillation moves the centre of the oscillations after it away from
-        E_ref, which is how order 2 ended above RATTLE's RMS(H − E_ref). Measured (CPU, 2 fs,
-        RMS(H − E_ref) against RATTLE's from the same start): an alanine dipeptide in vacuum,
-        1000 steps, 4.0x before the α = 0 trial, 0.56x with this rule, 1.06x with |H − E_ref|
-        alone as the rule; the shipped water cluster, 500 steps, 0.43x before, 1.08x with this
-        rule (0.83-0.94x with earlier variants of it: one run against another), 0.41x with
-        |H − E_ref| alone. The force at the restored positions is
+        E_ref, which is how order 2 ended above RATTLE's RMS(H − E_ref) before this rule
+        (the measurements, against RATTLE and against |H − E_ref| alone as the rule:
+        docs/energy_mode.md). The force at the restored positions is
         computed again at the next step's start: one more force evaluation, counted here.
         No constraint step follows the restore: on the common platform any
         ``addConstrainPositions`` after the midpoint assignment in program text would make
@@ -915,9 +911,9 @@ class AlphaRattleEnergyIntegrator(_ReferenceEnergy, _AlphaRattleBase):
 
         One measured |S| moves S̄ by at most ×10^0.2 up and ×10^-0.6 down, so that
         a secant over a noise-sized move of α cannot inflate S̄ (an inflated S̄ damps
-        every Newton step to nothing: the *dead controller*, S̄ ≈ 6e8 kJ/mol measured on
-        water and villin at order 2 before this rule) and an inflated S̄ is back within
-        about a dozen steps.
+        every Newton step to nothing: the *dead controller*, seen on water and villin at
+        order 2 before this rule, docs/research/controller_robustness.md) and an inflated
+        S̄ falls by up to ×10^0.6 with each slope measured below it.
         """
         self.addComputeGlobal(
             "slope_scale",
@@ -932,13 +928,13 @@ class AlphaRattleEnergyIntegrator(_ReferenceEnergy, _AlphaRattleBase):
         A step that moved α by more than the limit, opposite to the previous step's
         move of more than the limit, and still missed E_ref is the signature of a
         controller that cannot reach E_ref (a residual beyond α's authority, or a slope
-        that changes sign across the move):
-        at order 4 on villin it ran into a limit cycle, α swinging between ±0.05 each
-        step for 500 steps while H − E_ref grew to 18 kJ/mol. A step within tolerance
+        that changes sign across the move): without this rule such a controller can
+        run into a limit cycle, α swinging between ± the limit every step while H − E_ref
+        grows (seen at order 4 on villin). A step within tolerance
         grows the limit again by ×1.5, up to ``max_alpha_change``; it never drops below
-        a quarter of ``alpha_probe``. Order 4 only: at order 2 it made the water box
-        drift (CUDA mixed, 10 ps: RMS 6.8 against 0.47 kJ/mol without it), so there the
-        limit stays ``max_alpha_change``.
+        a quarter of ``alpha_probe``. Order 4 only: at order 2 the rule made the water box
+        drift, so there the limit stays ``max_alpha_change`` (the measurements:
+        docs/research/controller_robustness.md).
         """
         self.addComputeGlobal(
             "trust",

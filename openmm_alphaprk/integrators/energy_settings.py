@@ -138,11 +138,10 @@ class ControllerDefaults:
     take large excursions that spoil later steps (the interval comparison is in
     docs/research/energy_mode_first_build.md, "Defaults, and why"). Order 4 (any composition; the values are
     the triple jump's, with α on its middle sub-step, and scale by :func:`alpha_scale_of`
-    for another α stage): α* is O(h²), a few 1e-2 for water at 2 fs on the triple
-    jump; a large excursion of α turns the step into a poor second-order one, so the
-    interval and the moves are small. The midpoint tolerance can be
-    looser at order 4 because a midpoint error δ changes angular momentum by
-    ≈ 2hα δ × F per step, and α is ~100× smaller. Order 4 allows one more trial:
+    for another α stage): α* is O(h²), far below order 2's; a large excursion of α
+    turns the step into a poor second-order one, so the interval and the moves are small.
+    The midpoint tolerance can be looser at order 4 because a midpoint error δ changes
+    angular momentum by ≈ 2hα δ × F per step, and α is far smaller. Order 4 allows one more trial:
     after the first, a trial is short (one force evaluation instead of three).
     """
 

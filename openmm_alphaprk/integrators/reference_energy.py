@@ -108,8 +108,8 @@ class _ReferenceEnergy:
 
         The force at x0 must have been read (copied) before this block: with the
         energy read here as a step's first evaluation and ``f`` read after it, the
-        forces were wrong on CUDA and NVIDIA's OpenCL (measured on an H100: +32
-        kJ/mol in one step; not seen with pocl or Reference).
+        forces were wrong on CUDA and NVIDIA's OpenCL, not on pocl or Reference (the
+        measurement: docs/research/guide_measurements_2026-11-27.md).
         """
         self.beginIfBlock("state_check > 0.5")  # the first step of a step() call (module docstring)
         x_end, v_end = previous

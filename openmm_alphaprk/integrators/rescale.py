@@ -63,7 +63,7 @@ CONTEXT_CHECKED = "context_checked"
 _AXES = {"x": "vector(1,0,0)", "y": "vector(0,1,0)", "z": "vector(0,0,1)"}
 #: The centre-of-mass velocity, per degree of freedom, from the axis weights ``axis_x`` …
 #: (1 on the degrees of freedom of that axis, else 0): no vector function, which costs a
-#: sum or per-DOF step 5–8x as much on the Reference and CPU platforms.
+#: sum or per-DOF step several times as much on the Reference and CPU platforms.
 _CENTRE_OF_MASS_VELOCITY = "(momentum_x*axis_x + momentum_y*axis_y + momentum_z*axis_z)/total_mass"
 #: Velocity of the rigid-body motion at the positions x (with the rotation), per degree of freedom.
 _RIGID_VELOCITY = (
@@ -469,10 +469,9 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         Without :meth:`check_context` the program cannot see the System, so it reads the
         answer off the forces at the state E_ref is taken from: pair forces without a
         periodic box sum to zero force and zero torque about the centre of mass (to
-        round-off, about 1e-8 of Σ|f| and of Σ|r||f|), an external potential (a particle
-        held in space, a field) to a net force, and minimum-image pairs across a periodic
-        boundary to a net torque (about 1e-3 of Σ|r||f| in a box of a few nm, falling
-        slowly with its size). ``translation`` = 1 where |Σf| ≤ 1e-5 Σ|f| and the System
+        round-off, far below the thresholds), an external potential (a particle held in
+        space, a field) to a net force, and minimum-image pairs across a periodic boundary
+        to a net torque (far above them). ``translation`` = 1 where |Σf| ≤ 1e-5 Σ|f| and the System
         has more than one particle (one particle has no motion but its centre's);
         ``rotation`` = 1 besides where |Σ r × f| ≤ 1e-6 Σ|r||f|. A state whose forces all
         vanish keeps both. Restraints on a few atoms of many can pass for momentum-keeping

@@ -65,9 +65,9 @@ class SplittingRattleIntegrator(_StepProgram):
 
     α = ¼ is two RATTLE steps of h/2; the default, α = 0.306817, is the minimum-error
     two-stage splitting (McLachlan 1995), which minimises the leading energy error term at
-    the same two force evaluations but has 0.64 of the stability interval of two RATTLE
-    steps of h/2 on a harmonic oscillator (:meth:`~.splittings.Splitting.stability_limit`); what it
-    measured against RATTLE is in docs/splitting.md.
+    the same two force evaluations but has a shorter stability interval than two RATTLE
+    steps of h/2 on a harmonic oscillator (:meth:`~.splittings.Splitting.stability_limit`
+    computes it); the numbers, and what it measured against RATTLE, are in docs/splitting.md.
 
     Each step starts with OpenMM's update-context-state step, as a ``VerletIntegrator``
     step does. Every force is taken at constrained positions, so virtual sites are right on
