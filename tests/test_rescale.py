@@ -638,3 +638,30 @@ def test_the_scalings_statistics_are_what_each_step_did_and_shrink_as_rattles_er
         shrink.append(totals["rms_scale_change"])
     # s − 1 removes one RATTLE step's energy error, O(h³): 8x smaller at h/2 (measured 8.1)
     assert 6 < shrink[0] / shrink[1] < 10
+
+
+@pytest.mark.parametrize("options", [{"alpha": 0.1}, {"alpha": 0.01, "order": 4}])
+def test_rescaling_after_a_fixed_alpha_is_alpha_rattles_step_with_the_energy_held(options):
+    """the layer over the α base: the positions α-RATTLE's, the velocities scaled, H at E_ref, restorable."""
+    from openmm_alphaprk import restore_integrator
+    from openmm_alphaprk.systems import prepare_system
+
+    water = prepare_system("water-cluster")
+    held = RattleRescaleIntegrator(H, **options)
+    plain = AlphaRattleIntegrator(H, **options)
+    contexts = []
+    for integrator in (held, plain):
+        context = mm.Context(water.system, integrator, REFERENCE)
+        context.setState(water.state)
+        integrator.step(1)
+        contexts.append(context)
+    np.testing.assert_allclose(positions_of(contexts[0]), positions_of(contexts[1]), rtol=0, atol=1e-12)
+    assert held.force_evaluations_per_step == plain.force_evaluations_per_step > 1
+    held.step(19)
+    state = contexts[0].getState(getEnergy=True)
+    residual = state.getKineticEnergy() + state.getPotentialEnergy() - held.reference_energy
+    assert abs(residual) < held.energy_tolerance and held.alpha == options["alpha"]
+    restored = restore_integrator(mm.XmlSerializer.deserialize(mm.XmlSerializer.serialize(held)))
+    assert isinstance(restored, RattleRescaleIntegrator) and restored.alpha == options["alpha"]
+    with pytest.raises(ValueError, match="split=α"):
+        RattleRescaleIntegrator(H, alpha=0.1, splitting="me2")

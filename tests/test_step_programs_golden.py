@@ -15,17 +15,22 @@ from pathlib import Path
 
 import openmm as mm
 
-from openmm_alphaprk import AlphaRattleIntegrator
+from openmm_alphaprk import AlphaRattleIntegrator, RattleRescaleIntegrator
 from openmm_alphaprk.runs.integrator_names import example_names, make_integrator
 
 GOLDEN = Path(__file__).parent / "golden" / "step_programs.txt"
 
 #: Every form the registry names (``example_names``: each family, order, set and layer, every
-#: named splitting), made by name at 2 fs, and the one option no name reaches (α on every stage).
+#: named splitting), made by name at 2 fs, and the options no name reaches: α on every stage, and
+#: the rescaling after a fixed α (a combination of the layer and the α base that no name offers).
 INTEGRATORS = {
     **{name: partial(make_integrator, name, 0.002) for name in example_names() if name != "verlet"},
     "AlphaRattleIntegrator(0.002, alpha=0.01, order=4, alpha_stages='all')": lambda: AlphaRattleIntegrator(
         0.002, alpha=0.01, order=4, alpha_stages="all"
+    ),
+    "RattleRescaleIntegrator(0.002, alpha=0.1)": lambda: RattleRescaleIntegrator(0.002, alpha=0.1),
+    "RattleRescaleIntegrator(0.002, alpha=0.01, order=4)": lambda: RattleRescaleIntegrator(
+        0.002, alpha=0.01, order=4
     ),
 }
 

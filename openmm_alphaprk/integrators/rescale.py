@@ -46,16 +46,17 @@ from collections.abc import Callable
 import openmm as mm
 import openmm.unit as unit
 
-from .._units import InputError
-from ..errors import VelocityRescaleError  # defined there; importable from here too
+from .._units import InputError, to_dimensionless
+from ..errors import MidpointConvergenceError, VelocityRescaleError  # defined there; importable from here too
 from ..nve import momentum_breaking_forces
+from .alpha_rattle import DEFAULT_MAX_MIDPOINT_ITERATIONS, DEFAULT_MIDPOINT_TOLERANCE
 from .compositions import Composition, requested_composition
 from .pieces import DEFAULT_CONSTRAINT_TOLERANCE, _StepProgram
 from .reference_energy import _ReferenceEnergy, energy_tolerance_setting
 from .splittings import RATTLE, SPLITTINGS, Splitting
 from .splittings import splitting as named_splitting
 from .stage_sets import StageSet
-from .variables import N_PARTICLES, RATTLE_RESIDUAL, RESCALE_HALTED, STEPS_TAKEN, VELOCITY_SCALE
+from .variables import ALPHA, N_PARTICLES, RATTLE_RESIDUAL, RESCALE_HALTED, STEPS_TAKEN, VELOCITY_SCALE
 
 #: A global set to 1 by :meth:`RattleRescaleIntegrator.check_context`: the System's box and forces known.
 CONTEXT_CHECKED = "context_checked"
@@ -151,6 +152,12 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
     composition : str or Composition, optional
         A composition by name (:data:`~.compositions.COMPOSITIONS`) or a
         :class:`~.compositions.Composition`, instead of ``order``.
+    alpha : float, optional
+        Instead of RATTLE's step, α-RATTLE's with this fixed α (or, with ``order`` or
+        ``composition``, the composition with α on its middle stage): the rescaling after a
+        fixed α, built from the same pieces as :class:`~.alpha_rattle.AlphaRattleIntegrator`'s
+        step. Not a name of the command line: at equal force evaluations it measured
+        farther from the converged trajectory than the rescaled RATTLE rows (docs/integrators.md).
     splitting : str or Splitting, optional
         Instead of RATTLE, a kick-drift splitting with constraints (:mod:`~.splittings`,
         by name or a :class:`~.splittings.Splitting`; ``"me2"``: the minimum-error
@@ -231,12 +238,17 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         composition: str | Composition | None = None,
         rescale_interval: int = 1,
         splitting: str | Splitting | None = None,
+        alpha: float | None = None,
     ) -> None:
         tolerance = energy_tolerance_setting(energy_tolerance)
         self._composition = requested_composition(order, composition)
         if splitting is not None and self._composition is not None:
             raise InputError("give a composition (order, composition) or a splitting, not both.")
         self._splitting = named_splitting(splitting) if splitting is not None else None
+        if alpha is not None and self._splitting is not None:
+            raise InputError("alpha applies to α-RATTLE's step or composition, not to a splitting (split=α).")
+        #: α of an α-RATTLE base step (None: an explicit base)
+        self._alpha = None if alpha is None else to_dimensionless(alpha, "alpha")
         #: the base step the rescaling follows: RATTLE, a composition of RATTLE steps or a splitting
         self._base: StageSet = self._composition or self._splitting or RATTLE
         #: the sub-steps of a step, where there are several (a composition or a splitting)
@@ -247,7 +259,16 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         self._add_rescale_variables()
         if self._rescale_interval > 1:
             self._add_interval_variables(self._rescale_interval)
-        if self._stages is not None:
+        if self._alpha is not None:  # declares fstart (and a composition's state and record) too
+            order = 2 if self._composition is None else self._composition.order
+            self._add_midpoint_variables(
+                self._alpha,
+                DEFAULT_MIDPOINT_TOLERANCE,
+                DEFAULT_MAX_MIDPOINT_ITERATIONS,
+                order,
+                self._composition,
+            )
+        elif self._stages is not None:
             self._add_record(self._stages)
         self._add_step(self._build_program, update_context_state=False, halted=RESCALE_HALTED)
 
@@ -255,9 +276,13 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         self.addGlobalVariable("rotation", 1)  # 0 for a periodic System
         self.addGlobalVariable("translation", 1)  # 0 where the forces break momentum
         self.addGlobalVariable(CONTEXT_CHECKED, 0)  # 1 once check_context has decided both
-        for name in ("net_force", "force_scale", "net_torque", "torque_scale", *(
-            f"net_{kind}_{axis}" for kind in ("force", "torque") for axis in _AXES
-        )):
+        for name in (
+            "net_force",
+            "force_scale",
+            "net_torque",
+            "torque_scale",
+            *(f"net_{kind}_{axis}" for kind in ("force", "torque") for axis in _AXES),
+        ):
             self.addGlobalVariable(name, 0)
         self.addGlobalVariable("total_mass", 0)
         for name in (
@@ -278,9 +303,10 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         ):
             self.addGlobalVariable(name, 0)
         self.addGlobalVariable(VELOCITY_SCALE, 1)
-        for name in ("fstart", "rigid_velocity", *(f"axis_{axis}" for axis in _AXES)):
+        own = ("rigid_velocity", *(f"axis_{axis}" for axis in _AXES))
+        for name in own if self._alpha is not None else ("fstart", *own):
             self.addPerDofVariable(name, 0)
-        if self._stages is not None:
+        if self._stages is not None and self._alpha is None:
             for name in ("xstep", "vstep"):
                 self.addPerDofVariable(name, 0)
 
@@ -335,6 +361,8 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
             # this one unless the state was set, which the reference check's block copies
             self.addComputeGlobal("step_force_evaluations", "0")
             self.addComputePerDof("fstart", "f")
+            if self._alpha is not None:
+                self.addComputePerDof("fmid", "f")
             self._add_reference_check(on_moved=on_moved, previous=("x0", "v0"), **check)
         else:  # the stages overwrite x0, v0: the step's start kept for a step without a factor
             self._add_save_step_start(xstep="x", vstep="v", fstart="f")
@@ -342,8 +370,17 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
             self._add_reference_check(on_moved=moved, **check)
 
     def _add_base_step(self) -> None:
-        """Add the base step from x0, v0 (F(x0) in ``fstart``): RATTLE, a composition or a splitting."""
-        self._add_substeps(self._base.substeps(), first_force="fstart")
+        """Add the base step from x0, v0 (F(x0) in ``fstart``): RATTLE, a composition, a splitting or α's.
+
+        With ``alpha``, α-RATTLE's step or composition (:meth:`~.pieces._StepProgram._add_alpha_step`),
+        its failed midpoint iterations counted: a failed step returns its start, which the
+        rescaling then scales by s ≈ 1, and :meth:`step` raises.
+        """
+        if self._alpha is None:
+            self._add_substeps(self._base.substeps(), first_force="fstart")
+            return
+        self._add_alpha_step(self._composition, first_force="fstart")
+        self.addComputeGlobal("midpoint_failures", "midpoint_failures + midpoint_failed")
 
     def _add_plain_step(self) -> None:
         """Between rescalings (``rescale_count`` < N): the RATTLE step, then the state it ends in recorded.
@@ -573,7 +610,14 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
             return
         self.setGlobalVariableByName(RESCALE_HALTED, 0)
         before = self.steps_taken
+        failures = self.getGlobalVariableByName("midpoint_failures") if self._has_alpha else 0.0
         super().step(steps)
+        if self._has_alpha and self.getGlobalVariableByName("midpoint_failures") > failures:
+            raise MidpointConvergenceError(
+                f"α-RATTLE midpoint iteration did not converge in {type(self).__name__} (alpha={self.alpha}, "
+                f"timestep={self.timestep}): the failed step returned its start. Reduce the timestep or "
+                "|alpha|, or check the system for overlapping atoms."
+            )
         if self.getGlobalVariableByName(RESCALE_HALTED):
             raise VelocityRescaleError(self._no_factor_message(steps - (self.steps_taken - before)))
 
@@ -646,7 +690,9 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
 
     def __repr__(self) -> str:
         text = super().__repr__()
-        chosen = self.splitting
+        chosen, alpha = self.splitting, self.alpha
+        if alpha is not None:
+            text = f"{text[:-1]}, alpha={alpha})"
         return text if chosen is None else f"{text[:-1]}, splitting={chosen.name!r})"
 
     @property
@@ -655,6 +701,26 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         if "_splitting" in vars(self):
             return self._splitting
         return self._recorded(Splitting, SPLITTINGS)
+
+    @property
+    def _has_alpha(self) -> bool:
+        return "midpoint_failures" in {
+            self.getGlobalVariableName(i) for i in range(self.getNumGlobalVariables())
+        }
+
+    @property
+    def alpha(self) -> float | None:
+        """α of an α-RATTLE base step (None: RATTLE, a composition of RATTLE steps or a splitting)."""
+        return self.getGlobalVariableByName(ALPHA) if self._has_alpha else None
+
+    def _massless_refusal(self, count: int, platform: str | None) -> str | None:
+        if count and self._has_alpha and self.alpha != 0.0:
+            return (
+                f"{type(self).__name__} with alpha={self.alpha} cannot integrate this system: {count} "
+                "particle(s) have zero mass (virtual sites), and α ≠ 0 takes a force at the unconstrained "
+                "midpoint of the step, where no OpenMM platform places them. Use alpha=0 (or no alpha)."
+            )
+        return super()._massless_refusal(count, platform)
 
     @property
     def rescale_interval(self) -> int:
