@@ -1,7 +1,8 @@
 """α-RATTLE's energy-preserving mode: its step programs and its controller, one room.
 
-:class:`AlphaRattleEnergyIntegrator` is a subclass of the fixed-α
-:class:`~.alpha_rattle.AlphaRattleIntegrator` whose programs choose α. Its two programs,
+:class:`AlphaRattleEnergyIntegrator` is the fixed-α
+:class:`~.alpha_rattle.AlphaRattleIntegrator`'s sibling on their private base
+(:class:`~.alpha_rattle._AlphaRattleBase`), with programs that choose α. Its two programs,
 one α-RATTLE step or a composition of them, are the ``_build_*`` methods below;
 the controller's pieces follow them. docs/energy_program.md reads both programs as the state
 machine described below: an outline of each by block and piece, and every global the controller

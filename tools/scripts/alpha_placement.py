@@ -50,7 +50,7 @@ def main(argv: list[str] | None = None) -> None:
             if alpha == "energy":
                 make = partial(AlphaRattleEnergyIntegrator, h * unit.picoseconds, **settings)
             else:
-                make = partial(AlphaRattleIntegrator, h * unit.picoseconds, alpha, **settings)
+                make = partial(AlphaRattleIntegrator, h * unit.picoseconds, alpha=alpha, **settings)
             run = run_trajectory(prepared, SubStepped(make), horizons)
             errors = horizon_errors(run, ref, box, args.timestep)
             integrator = run.integrator

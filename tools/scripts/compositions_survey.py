@@ -65,7 +65,7 @@ def main(argv: list[str] | None = None) -> None:
             if alpha == "energy":
                 make = partial(AlphaRattleEnergyIntegrator, h * unit.picoseconds, composition=chosen)
             else:
-                make = partial(AlphaRattleIntegrator, h * unit.picoseconds, alpha, composition=chosen)
+                make = partial(AlphaRattleIntegrator, h * unit.picoseconds, alpha=alpha, composition=chosen)
             evaluations = record(
                 f"{chosen.name} {'α = 0' if alpha == 0.0 else 'energy mode'}", SubStepped(make)
             )

@@ -83,6 +83,7 @@ class AlphaGlobalSplitting(_StepProgram):
     def __init__(
         self,
         timestep: unit.Quantity | float,
+        *,
         alpha: float = ALPHA_ME,
         constraint_tolerance: float = DEFAULT_CONSTRAINT_TOLERANCE,
     ) -> None:
