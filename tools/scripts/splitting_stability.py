@@ -32,7 +32,7 @@ import openmm as mm
 from openmm_alphaprk.integrators.splittings import Splitting, splitting, two_stage
 from openmm_alphaprk.observables import BOLTZMANN, degrees_of_freedom, rms, total_energy
 from openmm_alphaprk.runs.accuracy import start_context
-from openmm_alphaprk.runs.integrator_names import SPLITTING_NAMES, at_divisor
+from openmm_alphaprk.runs.integrator_names import at_divisor, parse_integrator
 from openmm_alphaprk.systems import PreparedSystem, load_definition, prepare_system
 
 INTEGRATORS = ("rattle", "split=1/4", "split-me", "split-bcss", "split3-me", "split3-bcss")
@@ -112,11 +112,11 @@ def splitting_of(name: str) -> Splitting:
     """Return the splitting an integrator name of the scan runs (velocity Verlet for ``rattle``)."""
     if name == "rattle":
         return VERLET
-    if name in SPLITTING_NAMES:
-        return splitting(SPLITTING_NAMES[name])
-    if name.startswith("split="):
-        numerator, _, denominator = name.partition("=")[2].partition("/")
-        return two_stage(float(numerator) / float(denominator or 1.0), name)
+    spec = parse_integrator(name)
+    if spec.family.word == "split" and spec.splitting is not None:
+        return splitting(spec.splitting)
+    if spec.family.word == "split" and spec.alpha is not None:
+        return two_stage(spec.alpha, name)
     raise ValueError(f"no splitting for integrator {name!r}")
 
 
