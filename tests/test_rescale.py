@@ -665,3 +665,29 @@ def test_rescaling_after_a_fixed_alpha_is_alpha_rattles_step_with_the_energy_hel
     assert isinstance(restored, RattleRescaleIntegrator) and restored.alpha == options["alpha"]
     with pytest.raises(ValueError, match="split=α"):
         RattleRescaleIntegrator(H, alpha=0.1, splitting="me2")
+
+
+def test_rescaling_after_a_fixed_alpha_loses_to_rescaled_rattle_at_equal_evaluations():
+    """why alpha=...+rescale is no name of the grammar (docs/integrators.md): farther from the true path."""
+    from openmm_alphaprk.systems import prepare_system
+
+    water = prepare_system("water-cluster")
+    cpu = mm.Platform.getPlatformByName("CPU")
+    steps = 50
+
+    def end(integrator, k):
+        context = mm.Context(water.system, integrator, cpu)
+        context.setState(water.state)
+        integrator.step(steps * k)
+        return positions_of(context), integrator.force_evaluations_per_step * k
+
+    reference, _ = end(RattleIntegrator(H / 64), 64)
+
+    def error(x):
+        return float(np.sqrt(((x - reference) ** 2).sum(axis=1).mean()))
+
+    alpha_x, alpha_cost = end(RattleRescaleIntegrator(H, alpha=0.1), 1)
+    k = round(alpha_cost)
+    rattle_x, rattle_cost = end(RattleRescaleIntegrator(H / k), k)
+    assert rattle_cost <= alpha_cost
+    assert error(rattle_x) < error(alpha_x) / 4
