@@ -16,7 +16,7 @@ import openmm as mm
 import openmm.unit as unit
 import pytest
 
-from openmm_alphaprk import RattleRescaleIntegrator
+from openmm_alphaprk import RattleRescaleIntegrator, restore_integrator
 from openmm_alphaprk.integrators import counted_force_evaluations
 from openmm_alphaprk.integrators.splittings import SPLITTINGS, Splitting
 from openmm_alphaprk.runs.integrator_names import (
@@ -200,7 +200,10 @@ def test_a_layer_added_as_one_class_runs_by_name_through_the_cli(uniform_layer, 
         label("split:me2+uniform@5")
         == "splitting, minimum error (α = 0.3068) + uniform scaling every 5 steps"
     )
-    assert isinstance(make_integrator("rattle4+uniform", 0.001), UniformRescaleIntegrator)
+    made = make_integrator("rattle4+uniform", 0.001)
+    assert isinstance(made, UniformRescaleIntegrator)
+    xml = mm.XmlSerializer.serialize(made)  # restored by its class's own kind, no table of numbers
+    assert isinstance(restore_integrator(mm.XmlSerializer.deserialize(xml)), UniformRescaleIntegrator)
     code = main(
         ["run", "water-cluster", "rattle+uniform", "--steps", "8", "--timestep", "1fs", "--platform", "CPU"]
         + ["--energy-interval", "2"]
@@ -211,3 +214,16 @@ def test_a_layer_added_as_one_class_runs_by_name_through_the_cli(uniform_layer, 
     assert summary["integrator"] == "rattle+uniform" and summary["steps"] == 8
     assert summary["energy_samples"] >= 4 and summary["max_abs_residual"] < 1e-3  # H held at E_ref, kJ/mol
     assert summary["rescaling"]["rescalings"] == 8
+
+
+@pytest.mark.parametrize("name", ["rattle", "alpha4=0.01", "energy", "rattle4+rescale", "split:me3"])
+def test_programs_from_before_the_kinds_were_names_are_restored(name):
+    """XML written when the kinds were the numbers 1-4 (the energy mode 2, told apart by E_ref)."""
+    from openmm_alphaprk.integrators.variables import KIND_VARIABLE
+
+    integrator = make_integrator(name, 0.002)
+    old = {"RattleIntegrator": 1, "AlphaRattleIntegrator": 2, "AlphaRattleEnergyIntegrator": 2}
+    old.update({"RattleRescaleIntegrator": 3, "SplittingRattleIntegrator": 4})
+    integrator.setGlobalVariableByName(KIND_VARIABLE, old[type(integrator).__name__])
+    restored = restore_integrator(mm.XmlSerializer.deserialize(mm.XmlSerializer.serialize(integrator)))
+    assert type(restored) is type(integrator)

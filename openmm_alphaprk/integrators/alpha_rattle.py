@@ -53,7 +53,6 @@ class _AlphaRattleBase(_StepProgram):
     adds its program (:meth:`_add_program`) and sets :attr:`energy_mode`.
     """
 
-    _kind = 2
     #: True if α is chosen each step to hold the energy (:class:`~.energy_mode.AlphaRattleEnergyIntegrator`).
     energy_mode: ClassVar[bool] = False
 

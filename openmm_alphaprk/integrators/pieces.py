@@ -69,7 +69,6 @@ import warnings
 import weakref
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import ClassVar
 
 import numpy as np
 import openmm as mm
@@ -100,6 +99,7 @@ from .variables import (
     REFUSED,
     STEP_FORCE_EVALUATIONS,
     STEPS_TAKEN,
+    program_kind,
 )
 
 DEFAULT_CONSTRAINT_TOLERANCE = 1e-8
@@ -176,13 +176,11 @@ _STEP_TYPES = {
 class _StepProgram(mm.CustomIntegrator):
     """The base of this package's integrators: their common state, pieces, stepping and listing.
 
-    Not an integrator itself. Subclasses set ``_kind`` (stored in the global variable
-    :data:`~.variables.KIND_VARIABLE` so that ``restore_integrator`` can recognise a
-    deserialized integrator) and build their whole step program in ``__init__`` from
-    the ``_add_*`` pieces, inside :meth:`_add_step`.
+    Not an integrator itself. Every program keeps :func:`~.variables.program_kind` of its
+    class in the global :data:`~.variables.KIND_VARIABLE`, by which ``restore_integrator``
+    recognises a deserialized integrator. Subclasses build their whole step program in
+    ``__init__`` from the ``_add_*`` pieces, inside :meth:`_add_step`.
     """
-
-    _kind: ClassVar[int] = 0
 
     def __init__(self, timestep: unit.Quantity | float, constraint_tolerance: float) -> None:
         step_size = to_float(timestep, unit.picoseconds, "timestep", positive=True)
@@ -190,7 +188,7 @@ class _StepProgram(mm.CustomIntegrator):
         tolerance = to_dimensionless(constraint_tolerance, "constraint_tolerance", positive=True)
         super().__init__(step_size)
         self.setConstraintTolerance(tolerance)
-        self.addGlobalVariable(KIND_VARIABLE, self._kind)
+        self.addGlobalVariable(KIND_VARIABLE, program_kind(type(self)))
         self.addGlobalVariable(FORCE_EVALUATIONS, 0)
         self.addGlobalVariable(STEPS_TAKEN, 0)
         self.addGlobalVariable(STEP_FORCE_EVALUATIONS, 0)

@@ -66,8 +66,6 @@ class RattleIntegrator(_StepProgram):
     0.3
     """
 
-    _kind = 1
-
     def __init__(
         self,
         timestep: unit.Quantity | float,

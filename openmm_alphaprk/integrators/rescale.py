@@ -225,7 +225,6 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
     (True, 1)
     """
 
-    _kind = 3
     _holds_energy_as = "RATTLE with velocity rescaling"
 
     def __init__(

@@ -11,7 +11,7 @@ from .pieces import _StepProgram
 from .rattle import RattleIntegrator
 from .rescale import RattleRescaleIntegrator
 from .splitting_rattle import SplittingRattleIntegrator
-from .variables import KIND_VARIABLE, REFERENCE_ENERGY
+from .variables import KIND_VARIABLE, REFERENCE_ENERGY, program_kind
 
 #: This package's integrator classes: ``isinstance(integrator, PACKAGE_INTEGRATORS)`` tells an
 #: integrator that counts its force evaluations from one that does not (``openmm.VerletIntegrator``).
@@ -23,10 +23,25 @@ PACKAGE_INTEGRATORS = (
     SplittingRattleIntegrator,
 )
 
-#: The class of each program kind; the energy mode shares the fixed α's kind (told apart by E_ref).
-_CLASSES_BY_KIND: dict[int, type[_StepProgram]] = {
-    cls._kind: cls for cls in PACKAGE_INTEGRATORS if cls is not AlphaRattleEnergyIntegrator
+#: The classes a program's kind names (:func:`~.variables.program_kind`), and the numbers that
+#: programs written before it kept (1–4; 2 also for the energy mode, told apart by E_ref).
+_CLASSES_BY_KIND: dict[int, type[_StepProgram]] = {}
+_LEGACY_KINDS: dict[int, type[_StepProgram]] = {
+    1: RattleIntegrator,
+    2: AlphaRattleIntegrator,
+    3: RattleRescaleIntegrator,
+    4: SplittingRattleIntegrator,
 }
+
+
+def register_integrator_class(cls: type[_StepProgram]) -> type[_StepProgram]:
+    """Let :func:`restore_integrator` give ``cls`` back to its programs (a subclass made elsewhere)."""
+    _CLASSES_BY_KIND[program_kind(cls)] = cls
+    return cls
+
+
+for _cls in PACKAGE_INTEGRATORS:
+    register_integrator_class(_cls)
 
 
 def counted_force_evaluations(integrator: mm.Integrator) -> int | None:
@@ -125,13 +140,13 @@ def restore_integrator(
         names = [integrator.getGlobalVariableName(i) for i in range(integrator.getNumGlobalVariables())]
         if KIND_VARIABLE in names:
             kind = int(integrator.getGlobalVariableByName(KIND_VARIABLE))
-    if kind not in _CLASSES_BY_KIND:
+    if kind not in _CLASSES_BY_KIND and kind not in _LEGACY_KINDS:
         raise InputTypeError(
             f"{type(integrator).__name__} object was not created by openmm_alphaprk "
             f"(no global variable {KIND_VARIABLE!r} with a known value); cannot restore it."
         )
-    cls = _CLASSES_BY_KIND[kind]
-    if cls is AlphaRattleIntegrator and REFERENCE_ENERGY in names:
+    cls = _CLASSES_BY_KIND.get(kind) or _LEGACY_KINDS[kind]
+    if kind == 2 and REFERENCE_ENERGY in names:  # a program from before the kinds were names
         cls = AlphaRattleEnergyIntegrator
     integrator.__class__ = cls
     return integrator  # type: ignore[return-value]

@@ -131,8 +131,6 @@ class SplittingRattleIntegrator(_StepProgram):
       0  update context state
     """
 
-    _kind = 4
-
     def __init__(
         self,
         timestep: unit.Quantity | float,

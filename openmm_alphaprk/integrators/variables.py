@@ -5,8 +5,21 @@ Reporters, scripts and the integrators' own properties read these by name
 the program that declares it (``integrator.program_listing()`` shows them all).
 """
 
-#: Identifies the integrator class in serialized form (:func:`~.restore.restore_integrator`).
+import zlib
+
+#: Identifies the integrator class in serialized form (:func:`~.restore.restore_integrator`):
+#: :func:`program_kind` of the class.
 KIND_VARIABLE = "alphaprk_kind"
+
+
+def program_kind(cls: type) -> int:
+    """Return the number a program of class ``cls`` keeps in :data:`KIND_VARIABLE`: its name's CRC-32.
+
+    Taken to 24 bits, so that the global (a double) holds it exactly; the same for the
+    same class name in every version, so that restoring needs no table of numbers.
+    """
+    return zlib.crc32(cls.__name__.encode()) & 0xFFFFFF
+
 
 # ---------------------------------------------------------------- every program
 STEPS_TAKEN = "steps_taken"

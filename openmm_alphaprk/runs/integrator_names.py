@@ -56,6 +56,7 @@ from ..integrators import (
     SplittingRattleIntegrator,
 )
 from ..integrators.compositions import COMPOSITIONS, DEFAULT_COMPOSITIONS
+from ..integrators.restore import register_integrator_class
 from ..integrators.splittings import MINIMUM_ERROR2, SPLITTINGS
 from ..integrators.stage_sets import Library
 from ..observables import VERLET_IS_LEAPFROG
@@ -316,6 +317,7 @@ def register_layer(layer: Layer) -> Layer:
     if layer.word in LAYERS and LAYERS[layer.word] != layer:
         raise InputError(f"a layer {layer.word!r} exists already; give the new one another word.")
     LAYERS[layer.word] = layer
+    register_integrator_class(layer.cls)  # restore_integrator gives its programs their class back
     return layer
 
 
