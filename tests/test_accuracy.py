@@ -78,7 +78,7 @@ def test_the_benchmark_adds_equal_cost_rows_and_states_every_error(cluster):
     # triple jump: 3 evaluations per step → RATTLE and RATTLE + rescaling at h/3
     assert (
         by_name["RATTLE h/3"].divisor == 3
-        and "equal evaluations (alpha4=0:triple-jump)" in by_name["RATTLE h/3"].role
+        and "equal evaluations (alpha4:triple-jump=0)" in by_name["RATTLE h/3"].role
     )
     assert by_name["RATTLE + rescaling h/3"].force_evaluations_per_step == pytest.approx(3.0)
     assert by_name["α-RATTLE-4 (triple-jump) α = 0"].force_evaluations_per_step == pytest.approx(3.0)

@@ -108,6 +108,8 @@ def test_every_family_and_named_set_is_in_the_help_and_the_examples():
         ("split-me", "split:me2"),
         ("split3-bcss+rescale@10", "split:bcss3+rescale@10"),
         ("rattle4+rescale:triple-jump@10", "rattle4:triple-jump+rescale@10"),
+        ("alpha4=0:triple-jump", "alpha4:triple-jump=0"),
+        ("energy4:triple-jump", "energy4:triple-jump"),
     ],
 )
 def test_names_from_before_the_grammar_are_read_as_the_canonical_ones(old, new):

@@ -25,8 +25,9 @@ Every name is ``BASE[:SET][=α][+rescale[@N]]`` (any case, white space ignored):
 
 Names from before this grammar keep working and are read as the canonical one:
 ``split-me`` = ``split:me2``, ``split-bcss`` = ``split:bcss2``, ``split3-me`` =
-``split:me3``, ``split3-bcss`` = ``split:bcss3``, and a set written after ``+rescale``
-(``rattle4+rescale:triple-jump@10`` = ``rattle4:triple-jump+rescale@10``).
+``split:me3``, ``split3-bcss`` = ``split:bcss3``, and a set written after ``=α`` or
+``+rescale`` (``alpha4=0:triple-jump`` = ``alpha4:triple-jump=0``,
+``rattle4+rescale:triple-jump@10`` = ``rattle4:triple-jump+rescale@10``).
 
 The labels of tables and figures (:func:`label`), the ``--help`` text
 (:data:`INTEGRATOR_HELP`), the unknown-name message and the names every test runs
@@ -379,10 +380,14 @@ def _number(text: object, number: str) -> float:
 
 
 def _canonical_text(cleaned: str) -> str:
-    """Read the names from before the grammar as canonical ones (:data:`ALIASES`, a set after +rescale)."""
+    """Read names from before the grammar as canonical (:data:`ALIASES`, a set after =α or +rescale)."""
     for old, new in ALIASES.items():
         if cleaned == old or cleaned.startswith((old + "+", old + "@")):
             cleaned = new + cleaned[len(old) :]
+    after_alpha = re.fullmatch(r"([a-z]+[0-9]*)=([^:+@]+):([^+@]+)(.*)", cleaned)
+    if after_alpha is not None:  # alpha4=0:triple-jump
+        base, number, chosen, rest = after_alpha.groups()
+        cleaned = f"{base}:{chosen}={number}{rest}"
     moved = re.fullmatch(r"([^:+]+)\+rescale(@[^:]*)?:([^@]+)(@.*)?", cleaned)
     if moved is not None:
         base, at_before, chosen, at_after = moved.groups()
