@@ -103,7 +103,7 @@ def test_help_explains_every_option_with_units(tmp_path, cache):
     top = alphaprk("--help", cwd=tmp_path, env_cache=cache, process=True).stdout
     for command in ("systems", "run", "compare", "analyze"):
         assert command in top
-    assert "leapfrog" in top and "alpha=<number>" in top
+    assert "leapfrog" in top and "BASE[:SET][=alpha][+rescale[@N]]" in top and "alpha[4|6]" in top
     run_help = alphaprk("run", "--help", cwd=tmp_path, env_cache=cache).stdout
     for option, unit in (
         ("--timestep", "fs"),

@@ -362,7 +362,7 @@ INTEGRATOR_HELP = _integrator_help()
 def _unknown(text: object, why: str) -> UnknownIntegratorError:
     """Return the one error for a name the grammar does not read: why, then the grammar and examples."""
     return UnknownIntegratorError(
-        f"integrator {text!r}: {why}. Names are BASE[:SET][=alpha][+rescale[@N]]: {INTEGRATOR_NAMES} "
+        f"unknown integrator {text!r}: {why}. Names are BASE[:SET][=alpha][+rescale[@N]]: {INTEGRATOR_NAMES} "
         f"(compositions: {', '.join(COMPOSITIONS)}; splittings: {', '.join(SPLITTINGS)}); e.g. rattle, "
         "rattle+rescale@10, rattle4+rescale, alpha=1/6, alpha4=0, energy4:triple-jump, split:me2+rescale, "
         "verlet."
