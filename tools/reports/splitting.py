@@ -10,10 +10,11 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
+from openmm_alphaprk.runs.integrator_names import label
 from tools.reports.long_runs import long_table
 from tools.reports.markdown import Column, markdown_table, table
 from tools.reports.numbers import sig, times, tolerance
-from tools.reports.sources import DATA, DOCS, Source, load
+from tools.reports.sources import DATA, DOCS, Source, load, provenance_line
 
 PAGE = DOCS / "splitting.md"
 FOLDER = "splitting/"
@@ -26,22 +27,14 @@ SYSTEMS = {
     "dhfr": "dhfr (23,558 atoms, amber99sb, HBonds, PME)",
 }
 
-#: The survey's rows as the page names them.
-ROWS = {
-    "RATTLE at h": "RATTLE at h",
-    "RATTLE at h/2": "RATTLE at h/2",
-    "split=1/4": "splitting α = ¼ (`split=1/4`)",
-    "split-bcss": "splitting, BCSS α = 0.2882 (`split-bcss`)",
-    "split-me": "**splitting, minimum error α = 0.3068 (`split-me`)**",
-    "split-me+rescale": "splitting, minimum error, then the rescaling (`split-me+rescale`)",
-    "RATTLE at h/3": "RATTLE at h/3",
-    "split3-bcss": "3-stage BCSS (`split3-bcss`)",
-    "split3-me": "3-stage minimum error (`split3-me`)",
-    "RATTLE at h/10": "RATTLE at h/10",
-    "alpha4=0 at h/2": "`alpha4=0` (Suzuki's composition of RATTLE) at h/2",
-    "rattle4+rescale at h/2": "`rattle4+rescale` at h/2",
-    "me2 x suzuki5": "Suzuki's composition of `split-me` (`composed(me2, SUZUKI5)`) at h",
-}
+#: A survey row that is no name of the registry: Suzuki's composition of the minimum-error splitting.
+COMPOSED = {"me2 x suzuki5": "Suzuki's composition of `split-me` (`composed(me2, SUZUKI5)`) at h"}
+
+
+def _named(name: str) -> str:
+    """Name an integrator as the page does: the registry's label and the name (``rattle``: RATTLE)."""
+    return "RATTLE (`rattle`)" if name == "rattle" else f"{label(name)} (`{name}`)"
+
 
 #: The surveys on the page, in its order: (block name, data file).
 SURVEYS = (
@@ -86,15 +79,18 @@ def _title(data: dict, path: str = "") -> str:
 
 def _label(row: str) -> str:
     """Return how the page names a row of a survey or of the energy-mode measurement."""
-    if row in ROWS:
-        return ROWS[row]
+    if row in COMPOSED:
+        return COMPOSED[row]
+    if row.startswith("RATTLE at h"):
+        return row
     energy = re.fullmatch(r"split-energy tol ([0-9.e+-]+), <= (\d+) trials", row)
     if energy:
         return f"energy mode, tol {tolerance(float(energy.group(1)))}·\\|E_ref\\|, ≤ {energy.group(2)} trials"
     named = re.fullmatch(r"([a-z0-9+=/-]+)( at h/\d+)?", row)
-    if named and not row.startswith("rattle "):
-        return f"`{named.group(1)}`{named.group(2) or ''}"
-    return row.replace("rattle at", "RATTLE at")
+    if named and named.group(2):
+        base = "RATTLE" if named.group(1) == "rattle" else f"`{named.group(1)}`"
+        return base + named.group(2)
+    return _named(row)
 
 
 def survey_table(path: str) -> str:
@@ -110,12 +106,11 @@ def survey_table(path: str) -> str:
             errors += f" (blew up at step {row['blew_up_at_step']})"
         label = _label(row["row"])
         table.append([label, f"{row['evaluations']:g}", sig(row["rms_residual"], 3), errors])
-    return (
+    run = (
         f"{_title(data, path)} — {data['steps']} steps from the start `{data.get('start', data['system'])}`, "
-        f"reference {data['reference'].split(',')[0]}; "
-        f"measured on {source.machine}, {source.date}; data `docs/data/{source.path}`\n\n"
-        + markdown_table(header, table)
+        f"reference {data['reference'].split(',')[0]}"
     )
+    return provenance_line([source], run) + "\n\n" + markdown_table(header, table)
 
 
 @dataclass(frozen=True)
@@ -271,15 +266,6 @@ STABILITY = (
         "villin-h3 (villin with hydrogens of 3 amu, its own equilibrated start)",
     ),
 )
-#: The stability scan's rows as the page names them.
-STABILITY_ROWS = {
-    "rattle": "RATTLE (`rattle`)",
-    "split=1/4": "α = ¼, RATTLE at h/2 (`split=1/4`)",
-    "split-me": "minimum error, α = 0.3068 (`split-me`)",
-    "split-bcss": "BCSS, α = 0.2882 (`split-bcss`)",
-    "split3-me": "3-stage minimum error (`split3-me`)",
-    "split3-bcss": "3-stage BCSS (`split3-bcss`)",
-}
 
 
 def _first_unstable(row: dict) -> str:
@@ -319,7 +305,7 @@ def stability_table(path: str, title: str) -> str:
         there = [run for run in row["runs"] if run["stable"] and run["h_fs"] == h]
         table.append(
             [
-                STABILITY_ROWS.get(row["integrator"], f"`{row['integrator']}`"),
+                _named(row["integrator"]),
                 f"{row['evaluations']:g}",
                 f"**{h:g}**",
                 f"{h / row['evaluations']:.3g}",
@@ -329,13 +315,13 @@ def stability_table(path: str, title: str) -> str:
                 _first_unstable(row),
             ]
         )
-    return (
+    run = (
         f"**{title}** ({data['dof']:,} degrees of freedom; T = {data['time_ps']:g} ps, H every "
         f"{data['every']} steps, threshold {data['threshold_kt']:g} kT = "
         f"{data['threshold_kj_per_mol_per_dof']:.3f} kJ/mol per degree of freedom, edge to "
-        f"{data['resolution_fs']:g} fs); measured on {source.machine}, {source.date}; data "
-        f"`docs/data/{source.path}`\n\n" + markdown_table(header, table)
+        f"{data['resolution_fs']:g} fs)"
     )
+    return provenance_line([source], run) + "\n\n" + markdown_table(header, table)
 
 
 #: The long runs on the page: (block name, data file of ``alphaprk bench long``).
@@ -363,12 +349,12 @@ def cost_table(path: str) -> str:
         for row in data["rows"]
     ]
     precision = data.get("precision") or "the platform's"
-    return (
+    run = (
         f"**{data['system']} ({data['atoms']:,} atoms), {data['timestep_fs']:g} fs, {data['platform']} "
         f"platform, precision {precision}** — `alphaprk bench cost`, every row in one run, rounds "
-        f"interleaved; measured on {source.machine}, {source.date}, with other runs on its two cores; "
-        f"data `docs/data/{source.path}`\n\n" + markdown_table(header, table)
+        "interleaved, with other runs on the machine's two cores"
     )
+    return provenance_line([source], run) + "\n\n" + markdown_table(header, table)
 
 
 def render() -> dict[Path, dict[str, str]]:
