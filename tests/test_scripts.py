@@ -40,7 +40,16 @@ def _run(script: str, *args: str, timeout: float = 120) -> str:
 
 def test_alpha_placement_runs(tmp_path):
     out = tmp_path / "placement.json"
-    text = _run("alpha_placement.py", "--system", "water-cluster", "--horizons", "1", "2", "--json", str(out))
+    text = _run(
+        "openmm_alphaprk.benchmarks.alpha_placement",
+        "--system",
+        "water-cluster",
+        "--horizons",
+        "1",
+        "2",
+        "--json",
+        str(out),
+    )
     data = json.loads(out.read_text(encoding="utf-8"))
     assert data["horizons"] == [1, 2] and "stages" in text
     # suzuki5: the energy mode on stages 1, 2, 3; α = 0 once; the fixed α on 1, 2, 3 and all
@@ -50,7 +59,15 @@ def test_alpha_placement_runs(tmp_path):
 
 def test_compositions_survey_runs(tmp_path):
     out = tmp_path / "survey.json"
-    _run("compositions_survey.py", "--system", "water-cluster", "--horizons", "1", "--json", str(out))
+    _run(
+        "openmm_alphaprk.benchmarks.compositions_survey",
+        "--system",
+        "water-cluster",
+        "--horizons",
+        "1",
+        "--json",
+        str(out),
+    )
     rows = json.loads(out.read_text(encoding="utf-8"))["rows"]
     assert any(row["row"].startswith("RATTLE h/") for row in rows)
     assert sum(row["row"].endswith("energy mode") for row in rows) == sum(

@@ -1,16 +1,14 @@
 """The stability scan of the explicit α-family: its rule, its bisection, the linear limits, the script.
 
-``tools/scripts/splitting_stability.py`` finds the largest stable step of RATTLE and the
+``python -m openmm_alphaprk.benchmarks.splitting_stability`` finds the largest stable step of RATTLE and the
 splittings on a system; :meth:`Splitting.stability_limit` is the harmonic oscillator's
 linear stability limit ωh_max that predicts the ratio of those steps.
 """
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import math
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -23,17 +21,10 @@ ROOT = Path(__file__).resolve().parents[1]
 
 @pytest.fixture(scope="module")
 def script():
-    """tools/scripts/splitting_stability.py as a module."""
-    spec = importlib.util.spec_from_file_location(
-        "splitting_stability", ROOT / "tools" / "scripts" / "splitting_stability.py"
-    )
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # its dataclass looks its module up there
-    try:
-        spec.loader.exec_module(module)
-        yield module
-    finally:
-        sys.modules.pop(spec.name, None)
+    """The stability scan (``python -m openmm_alphaprk.benchmarks.splitting_stability``)."""
+    from openmm_alphaprk.benchmarks import splitting_stability
+
+    return splitting_stability
 
 
 # --- the classification rule -------------------------------------------------------------

@@ -4,7 +4,7 @@ For each: force evaluations per step, RMS(H − E_ref) over 200 steps and the RM
 error per atom against RATTLE at h/64 after 5 / 20 / 50 / 200 steps (``--horizons``); RATTLE at h/k beside
 them. Prints a table; ``--json`` also writes it. Used for docs/compositions.md.
 
-    python tools/scripts/compositions_survey.py --system tip3p-2nm --timestep 2
+    python -m openmm_alphaprk.benchmarks.compositions_survey --system tip3p-2nm --timestep 2
 """
 
 from __future__ import annotations

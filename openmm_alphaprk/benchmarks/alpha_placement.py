@@ -5,7 +5,7 @@ mode) and the RMS position error per atom against RATTLE at h/64 after 5 / 20 / 
 (``--horizons``).
 Prints a table; ``--json`` also writes it. Used for docs/compositions.md.
 
-    python tools/scripts/alpha_placement.py --system tip3p-2nm --timestep 2
+    python -m openmm_alphaprk.benchmarks.alpha_placement --system tip3p-2nm --timestep 2
 """
 
 from __future__ import annotations

@@ -13,8 +13,8 @@ oscillator (:meth:`~openmm_alphaprk.integrators.splittings.Splitting.stability_l
 and the largest stable step it predicts from RATTLE's measured one, RATTLE's h times
 ωh_max / 2. CPU platform by default. Prints a table; ``--json`` also writes it.
 
-    python tools/scripts/splitting_stability.py --system tip3p-2nm --json out.json
-    python tools/scripts/splitting_stability.py --system villin --hydrogen-mass 3 --time 1
+    python -m openmm_alphaprk.benchmarks.splitting_stability --system tip3p-2nm --json out.json
+    python -m openmm_alphaprk.benchmarks.splitting_stability --system villin --hydrogen-mass 3 --time 1
 """
 
 from __future__ import annotations
