@@ -406,7 +406,10 @@ def test_energy_mode_options_with_a_fixed_alpha_are_refused():
 
 
 def test_the_class_diagram_has_at_most_three_levels():
-    """Every class below openmm.CustomIntegrator is an integrator, but the private base; three levels.
+    """Every class below openmm.CustomIntegrator is an integrator, but the private bases; three levels.
+
+    The private bases: ``_StepProgram`` (every program) and ``_AlphaRattleBase`` (what the
+    fixed α and the energy mode share; the energy mode is not an ``AlphaRattleIntegrator``).
 
     Beside them only the E_ref trait of the integrators that hold the energy (not an
     integrator, and not a level: it derives from object).
