@@ -195,7 +195,7 @@ elif args[:3] == ["-m", "openmm_alphaprk", "bench"]:
         with open(value("--json"), "w", encoding="utf-8") as handle:
             handle.write("{}")
     record({"bench": name, "args": rest})
-elif args and args[0].endswith("dhfr_openmm_settings.py"):
+elif args[:2] == ["-m", "openmm_alphaprk.benchmarks.dhfr_openmm_settings"]:
     from openmm_alphaprk.runs.integrator_names import parse_integrator
     names = args[args.index("--integrators") + 1 : args.index("--steps")]
     [parse_integrator(n) for n in names]

@@ -181,9 +181,8 @@ def openmm_dhfr_table() -> str:
         for row in data["rows"]
     ]
     header = ["integrator", "ms/step", "ns/day", "× LangevinMiddle", "× Verlet"]
-    run = (
-        f"{data['header']}; `python tools/scripts/dhfr_openmm_settings.py --platform CUDA --precision mixed`"
-    )
+    command = "python -m openmm_alphaprk.benchmarks.dhfr_openmm_settings --platform CUDA --precision mixed"
+    run = f"{data['header']}; `{command}`"
     return provenance_line([source], run) + "\n\n" + markdown_table(header, table)
 
 

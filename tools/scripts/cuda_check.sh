@@ -11,7 +11,7 @@
 #      single precision does not conserve energy (the same run), so LONG_PRECISIONS is mixed;
 #   B. then alone on the GPU: `alphaprk bench cost` on each of COST_SYSTEMS (mixed), on DHFR with
 #      the package's settings at 2 fs, and OpenMM's DHFR benchmark system as OpenMM builds it at
-#      4 fs (tools/scripts/dhfr_openmm_settings.py), for ns/day beside OpenMM's published figure;
+#      4 fs (openmm_alphaprk.benchmarks.dhfr_openmm_settings), for ns/day beside OpenMM's published figure;
 #   C. the explicit family's survey (tools/scripts/splitting_survey.py) on villin at 2 fs and on
 #      dhfr at 4 fs with hydrogens of 3 amu (its start "dhfr-h3" built beforehand like dhfr); off by
 #      default since docs/splitting.md has its CPU tables (SURVEYS=1 runs it);
@@ -118,7 +118,7 @@ if [ "$DHFR" = 1 ]; then
         --integrators verlet rattle rattle+rescale $INTERVAL_ROWS $SPLIT_ROWS alpha4=0 rattle4+rescale \
         --json "$WORK/cost_dhfr_2fs.json" 2>&1 | grep -v "^round\|^energy pass\|unsupported OpenCL"
     echo "-- DHFR as OpenMM's benchmark builds it, 4 fs, mixed ($((SECONDS - start)) s)"
-    timeout 50 python3 tools/scripts/dhfr_openmm_settings.py --platform "$PLATFORM" --precision mixed \
+    timeout 50 python3 -m openmm_alphaprk.benchmarks.dhfr_openmm_settings --platform "$PLATFORM" --precision mixed \
         --integrators rattle rattle+rescale ${INTERVAL_ROWS%% *} split-me split-me+rescale rattle4+rescale \
         --steps 500 --rounds 3 \
         --json "$WORK/dhfr_openmm_settings.json" 2>&1

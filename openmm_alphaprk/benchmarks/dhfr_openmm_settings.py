@@ -18,7 +18,7 @@ measurement, made so, cost 3.5x RATTLE's step).
 
 Example (CUDA)::
 
-    python tools/scripts/dhfr_openmm_settings.py --platform CUDA --precision mixed \
+    python -m openmm_alphaprk.benchmarks.dhfr_openmm_settings --platform CUDA --precision mixed \
         --integrators rattle rattle+rescale rattle4+rescale --json dhfr.json
 """
 
