@@ -13,11 +13,12 @@ checks the page's tables from it (:func:`render`).
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 
 import numpy as np
 
 from openmm_alphaprk.benchmarks.md_sweep.results import LABELS, STABLE_MAX_PER_DOF, SYSTEMS
-from tools.reports.markdown import read_blocks, replace_generated
+from tools.reports.markdown import Column, read_blocks, replace_generated, table
 from tools.reports.sources import DATA, DOCS
 
 PAGE = DOCS / "benchmarks.md"
@@ -35,63 +36,69 @@ def fmt(value: float, digits: int = 3) -> str:
     return f"{value:.{digits}g}"
 
 
+def _controller(title: str, key: str, show: Callable[[dict], str]) -> Column:
+    return Column(title, lambda e: show(e.get("controller", {})) if key in e.get("controller", {}) else "—")
+
+
+def _timing(key: str, digits: str) -> Callable[[dict], str]:
+    return lambda e: format(e["timing"].get(key, float("nan")), digits)
+
+
+#: The energy table's columns (a failed run: its label and error, the other cells empty).
+ENERGY_COLUMNS = [
+    Column("integrator", lambda e: e["label"]),
+    Column("evals/step", lambda e: f"{e['force_evaluations_per_step']:.2f}"),
+    Column("time/step ÷ RATTLE 2 fs", _timing("time_per_step_ratio", ".2f")),
+    Column("time/ps ÷ RATTLE 2 fs", _timing("time_per_ps_ratio", ".2f")),
+    Column("ns/day", _timing("ns_per_day", ".3g")),
+    Column("sweep ns/day", lambda e: f"{e['sweep_ns_per_day']:.3g}"),
+    Column("RMS(H − E_ref) kJ/mol", lambda e: fmt(e["rms_residual"])),
+    Column("max", lambda e: fmt(e["max_abs_residual"])),
+    Column("drift kJ/mol/ns/DOF", lambda e: fmt(e["drift_per_dof"], 2)),
+    _controller(
+        "α* p5/p50/p95",
+        "alpha_percentiles.p50",
+        lambda c: "/".join(f"{c[f'alpha_percentiles.{p}']:.2f}" for p in ("p5", "p50", "p95")),
+    ),
+    _controller(
+        "within tol.", "fraction_within_tolerance", lambda c: f"{100 * c['fraction_within_tolerance']:.0f} %"
+    ),
+    _controller("at bound", "fraction_at_bound", lambda c: f"{100 * c['fraction_at_bound']:.1f} %"),
+]
+
+
 def energy_markdown(system: str, entries: list[dict]) -> str:
     """Render the Markdown table of energy error and cost."""
     first = entries[0]
-    lines = [
+    caption = (
         f"**{system}**: {first.get('n_atoms', '?')} atoms, {first.get('degrees_of_freedom', '?')} DOF, "
-        f"{fmt(first.get('simulated_ps', float('nan')))} ps per run, from the same equilibrated start.",
-        "",
-        "| integrator | evals/step | time/step ÷ RATTLE 2 fs | time/ps ÷ RATTLE 2 fs | ns/day | sweep ns/day "
-        "| RMS(H − E_ref) kJ/mol | max | drift kJ/mol/ns/DOF | α* p5/p50/p95 | within tol. | at bound |",
-        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+        f"{fmt(first.get('simulated_ps', float('nan')))} ps per run, from the same equilibrated start."
+    )
+    failed = [Column("", lambda e: e["label"]), Column("", lambda e: f"failed: {e['error'][:80]}")]
+    rows = [
+        [c.cell(e) for c in failed] + [""] * (len(ENERGY_COLUMNS) - 2)
+        if "error" in e
+        else [c.cell(e) for c in ENERGY_COLUMNS]
+        for e in entries
     ]
-    for e in entries:
-        if "error" in e:
-            lines.append(f"| {e['label']} | failed: {e['error'][:80]} |" + " |" * 10)
-            continue
-        c = e.get("controller", {})
-        alpha = (
-            f"{c['alpha_percentiles.p5']:.2f}/{c['alpha_percentiles.p50']:.2f}/{c['alpha_percentiles.p95']:.2f}"
-            if "alpha_percentiles.p50" in c
-            else "—"
-        )
-        within = f"{100 * c['fraction_within_tolerance']:.0f} %" if "fraction_within_tolerance" in c else "—"
-        bound = f"{100 * c['fraction_at_bound']:.1f} %" if "fraction_at_bound" in c else "—"
-        t = {
-            "time_per_step_ratio": float("nan"),
-            "time_per_ps_ratio": float("nan"),
-            "ns_per_day": float("nan"),
-        }
-        t |= e["timing"]
-        lines.append(
-            f"| {e['label']} | {e['force_evaluations_per_step']:.2f} | {t['time_per_step_ratio']:.2f} | "
-            f"{t['time_per_ps_ratio']:.2f} | {t['ns_per_day']:.3g} | {e['sweep_ns_per_day']:.3g} | "
-            f"{fmt(e['rms_residual'])} | "
-            f"{fmt(e['max_abs_residual'])} | {fmt(e['drift_per_dof'], 2)} | {alpha} | {within} | {bound} |"
-        )
-    return "\n".join(lines)
+    return table(rows, [Column(c.title, lambda r, i=i: r[i]) for i, c in enumerate(ENERGY_COLUMNS)], caption)
+
+
+DYNAMICS_COLUMNS = [
+    Column("run", lambda e: e["label"]),
+    Column("RMS Δg(r), 2.4–8 Å", lambda e: f"{e['rdf_rms_difference']:.3f}"),
+    Column("g(r) first peak", lambda e: f"{e['rdf_first_peak']:.2f}"),
+    Column("D (1e-5 cm²/s)", lambda e: f"{e['diffusion']:.2f} ± {e['diffusion_error']:.2f}"),
+    Column("ΔD vs reference", lambda e: f"{100 * e['diffusion_relative_difference']:+.0f} %"),
+    Column("spectrum distance 0–1200 cm⁻¹", lambda e: fmt(e.get("spectrum_difference", float("nan")))),
+    Column("libration centroid (cm⁻¹)", lambda e: fmt(e.get("libration_centroid", float("nan")), 4)),
+    Column("shift", lambda e: f"{e.get('libration_centroid_shift', float('nan')):+.1f}"),
+]
 
 
 def dynamics_markdown(system: str, entries: list[dict], reference_label: str) -> str:
     """Render the Markdown table of RDF, D and spectrum against the reference."""
-    lines = [
-        f"**{system}** against {reference_label} (start velocities):",
-        "",
-        "| run | RMS Δg(r), 2.4–8 Å | g(r) first peak | D (1e-5 cm²/s) | ΔD vs reference | spectrum distance "
-        "0–1200 cm⁻¹ | libration centroid (cm⁻¹) | shift |",
-        "| --- | --- | --- | --- | --- | --- | --- | --- |",
-    ]
-    for e in entries:
-        lines.append(
-            f"| {e['label']} | {e['rdf_rms_difference']:.3f} | {e['rdf_first_peak']:.2f} | "
-            f"{e['diffusion']:.2f} ± {e['diffusion_error']:.2f} | "
-            f"{100 * e['diffusion_relative_difference']:+.0f} % | "
-            f"{fmt(e.get('spectrum_difference', float('nan')))} | "
-            f"{fmt(e.get('libration_centroid', float('nan')), 4)} | "
-            f"{e.get('libration_centroid_shift', float('nan')):+.1f} |"
-        )
-    return "\n".join(lines)
+    return table(entries, DYNAMICS_COLUMNS, f"**{system}** against {reference_label} (start velocities):")
 
 
 def scan_markdown(system: str, scan: dict) -> str:
