@@ -101,36 +101,37 @@ def dynamics_markdown(system: str, entries: list[dict], reference_label: str) ->
     return table(entries, DYNAMICS_COLUMNS, f"**{system}** against {reference_label} (start velocities):")
 
 
+def _scan_cell(cell: dict | None) -> str:
+    if cell is None:
+        return ""
+    if cell["status"] != "ok":
+        return "✗"
+    return f"{cell['max_abs_residual_per_dof']:.1e}" + ("" if cell["stable"] else " (unstable)")
+
+
+def _largest(cells: dict) -> str:
+    largest = cells["largest_stable_fs"]
+    if sum(1 for s in cells if s[0].isdigit()) == 1:
+        return "not scanned"
+    if largest is not None and largest == cells["scanned_to_fs"]:
+        return f"≥ {largest:g} fs (scan end)"
+    return "none" if largest is None else f"{largest:g} fs"
+
+
 def scan_markdown(system: str, scan: dict) -> str:
     """Render the Markdown table of the step-size scan."""
     steps = sorted({s for cells in scan.values() for s in cells if s[0].isdigit()}, key=float)
-    lines = [
+    columns = [
+        Column("integrator", lambda r: LABELS[r[0]]),
+        *(Column(f"{s} fs", lambda r, s=s: _scan_cell(r[1].get(s))) for s in steps),
+        Column("largest stable step", lambda r: _largest(r[1])),
+    ]
+    caption = (
         f"**{system}**: max|H − E_ref| per DOF (kJ/mol) over the run; ✗ = the run failed (NaN or failed "
         "midpoint iteration); stable = finished with max|H − E_ref| per DOF < "
-        f"{STABLE_MAX_PER_DOF} kJ/mol.",
-        "",
-        "| integrator | " + " | ".join(f"{s} fs" for s in steps) + " | largest stable step |",
-        "| --- |" + " --- |" * (len(steps) + 1),
-    ]
-    for integrator, cells in scan.items():
-        row = []
-        for s in steps:
-            cell = cells.get(s)
-            if cell is None:
-                row.append("")
-            elif cell["status"] != "ok":
-                row.append("✗")
-            else:
-                mark = "" if cell["stable"] else " (unstable)"
-                row.append(f"{cell['max_abs_residual_per_dof']:.1e}{mark}")
-        largest = cells["largest_stable_fs"]
-        limit = "none" if largest is None else f"{largest:g} fs"
-        if largest is not None and largest == cells["scanned_to_fs"]:
-            limit = f"≥ {largest:g} fs (scan end)"
-        if sum(1 for s in cells if s[0].isdigit()) == 1:
-            limit = "not scanned"
-        lines.append(f"| {LABELS[integrator]} | " + " | ".join(row) + f" | {limit} |")
-    return "\n".join(lines)
+        f"{STABLE_MAX_PER_DOF} kJ/mol."
+    )
+    return table(scan.items(), columns, caption)
 
 
 def render_page(page: str, report: dict) -> str:
