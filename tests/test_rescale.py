@@ -665,6 +665,8 @@ def test_rescaling_after_a_fixed_alpha_is_alpha_rattles_step_with_the_energy_hel
     assert isinstance(restored, RattleRescaleIntegrator) and restored.alpha == options["alpha"]
     with pytest.raises(ValueError, match="split=α"):
         RattleRescaleIntegrator(H, alpha=0.1, splitting="me2")
+    with pytest.raises(ValueError, match="rescale_interval=1 with alpha"):
+        RattleRescaleIntegrator(H, alpha=0.1, rescale_interval=10)
 
 
 def test_rescaling_after_a_fixed_alpha_loses_to_rescaled_rattle_at_equal_evaluations():
