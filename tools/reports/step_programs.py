@@ -13,32 +13,25 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from openmm_alphaprk import (
-    AlphaRattleEnergyIntegrator,
-    AlphaRattleIntegrator,
-    RattleIntegrator,
-    RattleRescaleIntegrator,
-    SplittingRattleIntegrator,
-)
+from openmm_alphaprk.runs.integrator_names import make_integrator
 
 PAGE = Path(__file__).resolve().parents[2] / "docs" / "step_programs.md"
 
-PROGRAMS = {
-    "RattleIntegrator(h)": lambda: RattleIntegrator(0.002),
-    "RattleRescaleIntegrator(h)": lambda: RattleRescaleIntegrator(0.002),
-    "RattleRescaleIntegrator(h, order=4)": lambda: RattleRescaleIntegrator(0.002, order=4),
-    "AlphaRattleIntegrator(h, alpha)": lambda: AlphaRattleIntegrator(0.002, alpha=0.1),
-    "AlphaRattleIntegrator(h, alpha, order=4)": lambda: AlphaRattleIntegrator(0.002, alpha=0.01, order=4),
-    "AlphaRattleIntegrator(h, alpha, composition='triple-jump')": lambda: AlphaRattleIntegrator(
-        0.002, alpha=0.01, composition="triple-jump"
-    ),
-    "AlphaRattleEnergyIntegrator(h)": lambda: AlphaRattleEnergyIntegrator(0.002),
-    "AlphaRattleEnergyIntegrator(h, order=4)": lambda: AlphaRattleEnergyIntegrator(0.002, order=4),
-    "SplittingRattleIntegrator(h)": lambda: SplittingRattleIntegrator(0.002),
-    "SplittingRattleIntegrator(h, splitting='bcss3')": lambda: SplittingRattleIntegrator(
-        0.002, splitting="bcss3"
-    ),
-}
+#: The programs the page shows, by their names in the registry (every form's listing is in
+#: tests/golden/step_programs.txt).
+PROGRAMS = (
+    "rattle",
+    "rattle+rescale",
+    "rattle+rescale@10",
+    "rattle4+rescale",
+    "alpha=0.1",
+    "alpha4=0.01",
+    "alpha4:triple-jump=0.01",
+    "energy",
+    "energy4",
+    "split:me2",
+    "split:bcss3",
+)
 
 
 def page_text() -> str:
@@ -50,9 +43,11 @@ def page_text() -> str:
         "Written by `python -m tools.reports.step_programs`; the same programs, computation for "
         "computation, are the stored listings of `tests/golden/step_programs.txt`.\n",
     ]
-    for name, make in PROGRAMS.items():
-        integrator = make()
-        parts.append(f"## `{name}`\n\n{integrator.getNumComputations()} computations.\n\n```text\n")
+    for name in PROGRAMS:
+        integrator = make_integrator(name, 0.002)
+        parts.append(
+            f"## `{name}`\n\n`{integrator!r}`: {integrator.getNumComputations()} computations.\n\n```text\n"
+        )
         parts.append(integrator.program_listing() + "\n```\n")
     return "\n".join(parts)
 
