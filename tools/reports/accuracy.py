@@ -17,7 +17,7 @@ from pathlib import Path
 from openmm_alphaprk.equal_cost import equal_cost_divisor, gain_text
 from openmm_alphaprk.workflows.plots import plot_accuracy
 from tools.reports.markdown import markdown_table
-from tools.reports.sources import parse_name, pick
+from tools.reports.sources import parse_name, pick, provenance_line, source
 
 DOCS = Path(__file__).resolve().parents[2] / "docs"
 SYSTEMS = ("tip3p-2nm", "tip3p-3nm", "villin", "water-cluster")
@@ -161,7 +161,9 @@ def render() -> dict[Path, dict[str, str]]:
     """docs/accuracy.md's generated blocks, by name."""
     tables = {}
     for system, result in _systems().items():
-        tables[f"{system} header"] = result["header"]
+        tables[f"{system} header"] = provenance_line(
+            [source(f"accuracy/accuracy_benchmark_{system}.json")], result["header"]
+        )
         tables[f"{system} rows"] = rows_table(result)
         if system == "water-cluster":
             tables[f"{system} momenta"] = momentum_table(result)

@@ -19,7 +19,7 @@ from openmm_alphaprk.equal_cost import gain_text
 from openmm_alphaprk.workflows.plots import plot_accuracy
 from tools.reports.accuracy import baselines, rows_table
 from tools.reports.markdown import markdown_table
-from tools.reports.sources import pick
+from tools.reports.sources import pick, provenance_line, source
 
 DOCS = Path(__file__).resolve().parents[2] / "docs"
 STEPS = ("2fs", "4fs")
@@ -54,9 +54,13 @@ def verdicts(result: dict) -> str:
 
 
 def _results(step: str) -> dict[str, dict]:
+    """Return the results of each system at ``step``, each with the data file it came from (``path``)."""
     results = {}
     for path in sorted((DOCS / "data" / "compositions").glob(f"compositions_accuracy_{step}*.json")):
-        results.update(json.loads(path.read_text(encoding="utf-8"))["systems"])
+        found = json.loads(path.read_text(encoding="utf-8"))["systems"]
+        results.update(
+            {system: {**result, "path": f"compositions/{path.name}"} for system, result in found.items()}
+        )
     return results
 
 
@@ -65,7 +69,7 @@ def render() -> dict[Path, dict[str, str]]:
     tables = {}
     for step in STEPS:
         for system, result in _results(step).items():
-            tables[f"{system} {step} header"] = result["header"]
+            tables[f"{system} {step} header"] = provenance_line([source(result["path"])], result["header"])
             tables[f"{system} {step} rows"] = rows_table(result)
             tables[f"{system} {step} verdicts"] = verdicts(result)
     return {DOCS / "compositions.md": tables}
