@@ -101,7 +101,7 @@ def test_page_tables_are_the_ones_rendered_from_the_json():
     report = json.loads(JSON_OUT.read_text(encoding="utf-8"))
     on_page = page_tables(PAGE)
     rendered = read_blocks(render_page(PAGE.read_text(encoding="utf-8"), report))
-    assert set(on_page) == set(rendered) and len(on_page) == 8
+    assert set(on_page) == set(rendered) and len(on_page) == 9
     for name, table in rendered.items():
         assert on_page[name] == table, f"table {name!r} of docs/benchmarks.md is not the JSON's"
     for figure in report["figures"]:

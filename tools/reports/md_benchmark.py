@@ -19,7 +19,7 @@ import numpy as np
 
 from openmm_alphaprk.benchmarks.md_sweep.results import LABELS, STABLE_MAX_PER_DOF, SYSTEMS
 from tools.reports.markdown import Column, read_blocks, replace_generated, table
-from tools.reports.sources import DATA, DOCS
+from tools.reports.sources import DATA, DOCS, provenance_line, source
 
 PAGE = DOCS / "benchmarks.md"
 JSON_OUT = DATA / "benchmarks" / "benchmarks.json"
@@ -136,6 +136,15 @@ def scan_markdown(system: str, scan: dict) -> str:
 
 def render_page(page: str, report: dict) -> str:
     """Replace the generated blocks of the page's text ``page`` with the report's tables."""
+    environment = report["environment"]
+    run = (
+        "the MD benchmark (today `python -m openmm_alphaprk.benchmarks.md_sweep`) over the sweep "
+        "`docs/sweeps/md_benchmark.toml`, "
+        f"{environment['platform']} platform, OpenMM {environment['openmm']}"
+    )
+    page = replace_generated(
+        page, "provenance", provenance_line([source("benchmarks/benchmarks.json")], run), PAGE
+    )
     for system in SYSTEMS:
         if report["energy"][system]:
             page = replace_generated(

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from tools.reports.markdown import markdown_table as _table
+from tools.reports.sources import provenance_line, source
 
 
 def _e(value: float, digits: int = 2) -> str:
@@ -14,7 +15,12 @@ def _e(value: float, digits: int = 2) -> str:
 
 def render_tables(data: dict) -> dict[str, str]:
     """Render the Markdown tables of the page from the JSON data (the page must hold exactly these)."""
+    run = (
+        f"the numerical validation, run as `{data['command']}` (today "
+        f"`python -m openmm_alphaprk.benchmarks.validation`); {data['machine']}"
+    )
     return {
+        "provenance": provenance_line([source("validation/validation.json")], run),
         "headline": render_headline(data),
         "plain_pendulum_energy": _plain_pendulum_energy(data),
         "orders": _orders(data),
