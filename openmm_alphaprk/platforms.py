@@ -31,7 +31,7 @@ COMMON_PLATFORMS = ("CUDA", "OpenCL", "HIP")
 
 #: Standard deviation of a potential energy against the same state in double
 #: precision, σ = a (N/1000)^0.75 kJ/mol for N atoms, by force precision: the scales a fitted
-#: to smooth-PME TIP3P boxes (tools/scripts/energy_noise.py); docs/platforms.md sets the
+#: to smooth-PME TIP3P boxes (python -m openmm_alphaprk.benchmarks.energy_noise); docs/platforms.md sets the
 #: model beside each platform's measured noise.
 _NOISE_SCALE = {"single": 2.6e-3, "mixed": 1.8e-3, "double": 1.2e-4}
 _NOISE_EXPONENT = 0.75
