@@ -103,8 +103,20 @@ def _five_steps_on_reference(box, name: str) -> np.ndarray:
     return positions_of(context)
 
 
+#: Checked on the platform in the slow run only (a first step of ~10 s on pocl each precision):
+#: the rescaling over the composition with α, whose pieces the default run checks in
+#: "alpha=1/6+rescale" (the layer over the α step) and "alpha4=0.05" (the composition's loop).
+SLOW_ON_THE_PLATFORM = {"alpha4=0.05+rescale"}
+
+
 @pytest.mark.parametrize("spec", configured())
-@pytest.mark.parametrize("name", list(INTEGRATORS))
+@pytest.mark.parametrize(
+    "name",
+    [
+        pytest.param(name, marks=pytest.mark.slow) if name in SLOW_ON_THE_PLATFORM else name
+        for name in INTEGRATORS
+    ],
+)
 def test_every_integrator_takes_the_reference_step(water_box, spec, name, request):
     box = water_box
     results = [computed_once(request, f"reference_step_{name}", lambda: _five_steps_on_reference(box, name))]
