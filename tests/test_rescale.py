@@ -693,3 +693,20 @@ def test_rescaling_after_a_fixed_alpha_loses_to_rescaled_rattle_at_equal_evaluat
     rattle_x, rattle_cost = end(RattleRescaleIntegrator(H / k), k)
     assert rattle_cost <= alpha_cost
     assert error(rattle_x) < error(alpha_x) / 4
+
+
+def test_rescaling_after_a_fixed_alpha_raises_when_the_midpoint_iteration_fails():
+    """the α base's failure reaches the user as from AlphaRattleIntegrator, with the same message."""
+    from openmm_alphaprk import MidpointConvergenceError
+
+    system = mm.System()
+    for _ in range(2):
+        system.addParticle(1.0)
+    bond = mm.HarmonicBondForce()
+    bond.addBond(0, 1, 0.1, 1e7)  # far too stiff for the step: |α| h²ω²/4 ≈ 10
+    system.addForce(bond)
+    integrator = RattleRescaleIntegrator(H, alpha=0.5)
+    context = _context(system, integrator, [[0, 0, 0], [0.11, 0, 0]], [[1, 2, 0], [0, 0, 3]])
+    with pytest.raises(MidpointConvergenceError, match="midpoint iteration did not converge"):
+        integrator.step(1)
+    np.testing.assert_allclose(positions_of(context), [[0, 0, 0], [0.11, 0, 0]], atol=1e-12)  # its start

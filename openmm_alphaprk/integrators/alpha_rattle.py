@@ -26,7 +26,6 @@ from typing import ClassVar
 import openmm.unit as unit
 
 from .._units import InputError, to_dimensionless, to_float
-from ..errors import MidpointConvergenceError
 from ..observables import positive_int
 from .compositions import Composition, requested_composition
 from .pieces import (
@@ -97,30 +96,14 @@ class _AlphaRattleBase(_StepProgram):
         StartBlowUpError
             If the state went to NaN in the first 100 steps (:mod:`openmm_alphaprk.start_blowup`).
         """
-        failures = self.getGlobalVariableByName("midpoint_failures")
+        failures = self._midpoint_failures()
         super().step(steps)
-        if self.getGlobalVariableByName("midpoint_failures") > failures:
-            raise MidpointConvergenceError(
-                f"α-RATTLE midpoint iteration did not converge (last RMS change "
-                f"{self.getGlobalVariableByName('midpoint_change'):.3g} nm after "
-                f"{self.midpoint_iterations} iterations; tolerance {self.midpoint_tolerance}, "
-                f"alpha={'energy mode, ' if self.energy_mode else ''}{self.alpha}, "
-                f"timestep={self.timestep}). The context was left at the start "
-                "of the failed step. Reduce the timestep or |alpha|, raise midpoint_tolerance if it "
-                "is below the platform's precision, or check the system for overlapping atoms."
-            )
+        self._raise_if_midpoint_failed(failures)
 
     def _massless_refusal(self, count: int, platform: str | None) -> str | None:
         if count and (self.energy_mode or self.alpha != 0.0):
-            return (
-                f"{type(self).__name__} with "
-                f"{'the energy mode' if self.energy_mode else f'alpha={self.alpha}'} cannot integrate "
-                f"this system: {count} particle(s) have zero mass (virtual sites). "
-                "α ≠ 0 takes a force at the unconstrained midpoint of the step, where no OpenMM "
-                "platform places virtual sites. With virtual sites use alpha=0 (RATTLE, or order=4 for "
-                "a fourth-order composition of RATTLE steps) on CUDA, OpenCL or HIP after "
-                "integrator.check_context(context), or "
-                "openmm.VerletIntegrator."
+            return self._midpoint_force_refusal(
+                count, "the energy mode" if self.energy_mode else f"alpha={self.alpha}"
             )
         return super()._massless_refusal(count, platform)
 

@@ -78,7 +78,7 @@ from .. import platforms, start_blowup
 from .._units import InputError, to_dimensionless, to_float
 from ..errors import (  # defined there; importable from here too
     IncompatibleSystemError,
-    MidpointConvergenceError,  # noqa: F401 (the old import path)
+    MidpointConvergenceError,
     SystemSizeError,
     TimestepUnitWarning,
 )
@@ -341,8 +341,54 @@ class _StepProgram(mm.CustomIntegrator):
 
     def _recorded(self, kind: type[StageSet], library: Library) -> StageSet | None:
         """Read back the ``kind`` of set the program's globals record; None without one."""
-        names = (self.getGlobalVariableName(i) for i in range(self.getNumGlobalVariables()))
+        names = self._global_names()
         return kind.from_record({name: self.getGlobalVariableByName(name) for name in names}, library)
+
+    def _global_names(self) -> frozenset[str]:
+        """Return the names of the program's global variables, read again only when there are more.
+
+        A program declares its globals as it is built, so the names are read again only
+        when there are more of them (during construction); after that a call costs one count.
+        """
+        names = vars(self).get("_names", frozenset())
+        if len(names) != self.getNumGlobalVariables():
+            names = frozenset(self.getGlobalVariableName(i) for i in range(self.getNumGlobalVariables()))
+            self._names = names
+        return names
+
+    # ------------------------------------------------------- α's midpoint: what the user is told
+    def _midpoint_failures(self) -> float:
+        """Failed midpoint iterations since the program was created (0 for a program without α)."""
+        if "midpoint_failures" not in self._global_names():
+            return 0.0
+        return self.getGlobalVariableByName("midpoint_failures")
+
+    def _raise_if_midpoint_failed(self, failures_before: float) -> None:
+        """Raise :class:`MidpointConvergenceError` if a step failed its midpoint iteration since then."""
+        if self._midpoint_failures() <= failures_before:
+            return
+        get = self.getGlobalVariableByName
+        energy_mode = "energy mode, " if getattr(self, "energy_mode", False) else ""
+        raise MidpointConvergenceError(
+            f"α-RATTLE midpoint iteration did not converge (last RMS change "
+            f"{get(MIDPOINT_CHANGE):.3g} nm after {int(get(MIDPOINT_ITERATIONS))} iterations; tolerance "
+            f"{get('midpoint_tolerance') * unit.nanometers}, alpha={energy_mode}{get(ALPHA)}, "
+            f"timestep={self.timestep}). The context was left at the start "
+            "of the failed step. Reduce the timestep or |alpha|, raise midpoint_tolerance if it "
+            "is below the platform's precision, or check the system for overlapping atoms."
+        )
+
+    def _midpoint_force_refusal(self, count: int, method: str) -> str:
+        """Why ``count`` particles without mass cannot be integrated by a step with α's midpoint force."""
+        return (
+            f"{type(self).__name__} with {method} cannot integrate "
+            f"this system: {count} particle(s) have zero mass (virtual sites). "
+            "α ≠ 0 takes a force at the unconstrained midpoint of the step, where no OpenMM "
+            "platform places virtual sites. With virtual sites use alpha=0 (RATTLE, or order=4 for "
+            "a fourth-order composition of RATTLE steps) on CUDA, OpenCL or HIP after "
+            "integrator.check_context(context), or "
+            "openmm.VerletIntegrator."
+        )
 
     @property
     def composition(self) -> Composition | None:

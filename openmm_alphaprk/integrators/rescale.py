@@ -47,7 +47,7 @@ import openmm as mm
 import openmm.unit as unit
 
 from .._units import InputError, to_dimensionless
-from ..errors import MidpointConvergenceError, VelocityRescaleError  # defined there; importable from here too
+from ..errors import VelocityRescaleError  # defined there; importable from here too
 from ..nve import momentum_breaking_forces
 from .alpha_rattle import DEFAULT_MAX_MIDPOINT_ITERATIONS, DEFAULT_MIDPOINT_TOLERANCE
 from .compositions import Composition, requested_composition
@@ -617,14 +617,9 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
             return
         self.setGlobalVariableByName(RESCALE_HALTED, 0)
         before = self.steps_taken
-        failures = self.getGlobalVariableByName("midpoint_failures") if self._has_alpha else 0.0
+        failures = self._midpoint_failures()
         super().step(steps)
-        if self._has_alpha and self.getGlobalVariableByName("midpoint_failures") > failures:
-            raise MidpointConvergenceError(
-                f"α-RATTLE midpoint iteration did not converge in {type(self).__name__} (alpha={self.alpha}, "
-                f"timestep={self.timestep}): the failed step returned its start. Reduce the timestep or "
-                "|alpha|, or check the system for overlapping atoms."
-            )
+        self._raise_if_midpoint_failed(failures)
         if self.getGlobalVariableByName(RESCALE_HALTED):
             raise VelocityRescaleError(self._no_factor_message(steps - (self.steps_taken - before)))
 
@@ -710,30 +705,22 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         return self._recorded(Splitting, SPLITTINGS)
 
     @property
-    def _has_alpha(self) -> bool:
-        return "midpoint_failures" in {
-            self.getGlobalVariableName(i) for i in range(self.getNumGlobalVariables())
-        }
-
-    @property
     def alpha(self) -> float | None:
         """α of an α-RATTLE base step (None: RATTLE, a composition of RATTLE steps or a splitting)."""
-        return self.getGlobalVariableByName(ALPHA) if self._has_alpha else None
+        return self.getGlobalVariableByName(ALPHA) if ALPHA in self._global_names() else None
 
     def _massless_refusal(self, count: int, platform: str | None) -> str | None:
-        if count and self._has_alpha and self.alpha != 0.0:
-            return (
-                f"{type(self).__name__} with alpha={self.alpha} cannot integrate this system: {count} "
-                "particle(s) have zero mass (virtual sites), and α ≠ 0 takes a force at the unconstrained "
-                "midpoint of the step, where no OpenMM platform places them. Use alpha=0 (or no alpha)."
-            )
+        alpha = self.alpha
+        if count and alpha is not None and alpha != 0.0:
+            return self._midpoint_force_refusal(count, f"alpha={alpha}")
         return super()._massless_refusal(count, platform)
 
     @property
     def rescale_interval(self) -> int:
         """N: the velocities are rescaled every N-th step (1: every step)."""
-        names = {self.getGlobalVariableName(i) for i in range(self.getNumGlobalVariables())}
-        return int(self.getGlobalVariableByName("rescale_interval")) if "rescale_interval" in names else 1
+        if "rescale_interval" not in self._global_names():
+            return 1
+        return int(self.getGlobalVariableByName("rescale_interval"))
 
     @property
     def rescalings(self) -> int:
