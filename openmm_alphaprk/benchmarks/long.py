@@ -139,11 +139,10 @@ def one_evaluation(name: str) -> bool:
     >>> from openmm_alphaprk.benchmarks.long import one_evaluation
     >>> [one_evaluation(n) for n in ("verlet", "rattle+rescale", "alpha=0", "alpha4=0", "energy")]
     [True, True, True, False, False]
+    >>> one_evaluation("split:me2+rescale")  # two per step, as its splitting
+    False
     """
-    spec = parse_integrator(name)
-    if spec.order != 2:
-        return False
-    return spec.kind in ("verlet", "rattle", "rescale") or (spec.kind == "alpha" and spec.alpha == 0)
+    return parse_integrator(name).force_evaluations == 1
 
 
 def planned_steps(name: str, timestep_fs: float, time_ps: float, time_multi_ps: float) -> int:
