@@ -437,7 +437,13 @@ def parse_integrator(text: str | IntegratorSpec) -> IntegratorSpec:
     order = int(word_digit.group(2)) if word_digit.group(2) else 2
     if order not in family.orders or word_digit.group(2) == "2":
         raise _unknown(
-            text, f"{family.word} takes {'no order' if len(family.orders) == 1 else 'order 4 or 6'}"
+            text,
+            f"{family.word} takes "
+            + (
+                "no order"
+                if len(family.orders) == 1
+                else "order " + " or ".join(str(order) for order in family.orders if order != 2)
+            ),
         )
     composition = splitting = None
     if colon:
