@@ -45,10 +45,7 @@ def requested_splitting(alpha: float | None, chosen: str | Splitting | None) -> 
     if isinstance(alpha, str):
         raise InputError(f"alpha must be a number, got {alpha!r}.")
     value = to_dimensionless(alpha, "alpha")
-    for known in SPLITTINGS.values():
-        if known.alpha is not None and known.alpha == value:
-            return known
-    return two_stage(value)
+    return SPLITTINGS.find(lambda known: known.alpha == value) or two_stage(value)
 
 
 class SplittingRattleIntegrator(_StepProgram):
