@@ -11,6 +11,7 @@ from openmm_alphaprk import (
     AlphaRattleIntegrator,
     RattleIntegrator,
     RattleRescaleIntegrator,
+    SplittingRattleIntegrator,
     StateChangingForceWarning,
     VelocityRescaleError,
     restore_integrator,
@@ -523,6 +524,156 @@ def test_a_periodic_box_sums_the_kinetic_energy_once_per_interval(order):
     integrator.step(100)
     assert integrator.getGlobalVariableByName("host_syncs") - before == 11
     assert integrator.rescalings == 11
+
+
+#: Which block conditions hold on a step between rescalings that is not its call's first.
+_BETWEEN_RESCALINGS = {
+    "check_system > 0.5": False,
+    "refused < 0.5": True,
+    "refused + rescale_halted < 0.5": True,
+    "state_check > 0.5": False,
+    "state_moved + 1 - reference_set > 0": False,
+    "rescale_count < rescale_interval - 0.5": True,
+    "rescale_count > rescale_interval - 0.5": False,
+    "call_steps_left < 0.5": False,
+}
+_COMPUTATION_KINDS = {
+    mm.CustomIntegrator.ComputeGlobal: "global",
+    mm.CustomIntegrator.ComputePerDof: "per DOF",
+    mm.CustomIntegrator.ComputeSum: "sum",
+    mm.CustomIntegrator.ConstrainPositions: "constrain positions",
+    mm.CustomIntegrator.ConstrainVelocities: "constrain velocities",
+    mm.CustomIntegrator.UpdateContextState: "update context state",
+}
+
+
+def _work_of_a_step(integrator, conditions):
+    """The computations one step runs where each ``if`` condition holds as ``conditions`` says.
+
+    Global computations (evaluated on the host, no pass over the degrees of freedom) are
+    left out; an ``if`` whose condition is not in ``conditions`` fails the test.
+    """
+    steps = [integrator.getComputationStep(i) for i in range(integrator.getNumComputations())]
+    block_end, open_blocks = {}, []
+    for i, (kind, _variable, _expression) in enumerate(steps):
+        if kind in (mm.CustomIntegrator.IfBlockStart, mm.CustomIntegrator.WhileBlockStart):
+            open_blocks.append(i)
+        elif kind == mm.CustomIntegrator.BlockEnd:
+            block_end[open_blocks.pop()] = i
+    work, i = [], 0
+    while i < len(steps):
+        kind, variable, expression = steps[i]
+        assert kind != mm.CustomIntegrator.WhileBlockStart, "a loop: not a plain step"
+        if kind == mm.CustomIntegrator.IfBlockStart and not conditions[expression]:
+            i = block_end[i]
+        elif kind in _COMPUTATION_KINDS and _COMPUTATION_KINDS[kind] != "global":
+            work.append((_COMPUTATION_KINDS[kind], variable, expression))
+        i += 1
+    return work
+
+
+def _per_dof_variables(integrator):
+    return {integrator.getPerDofVariableName(i) for i in range(integrator.getNumPerDofVariables())}
+
+
+@pytest.mark.parametrize(
+    ("options", "unrescaled"),
+    [
+        ({}, lambda: RattleIntegrator(H)),
+        ({"order": 4}, lambda: RattleIntegrator(H, order=4)),
+        ({"splitting": "me2"}, lambda: SplittingRattleIntegrator(H, splitting="me2")),
+    ],
+    ids=["rattle", "rattle4", "split-me"],
+)
+def test_a_step_between_rescalings_is_the_unrescaled_integrators_step(options, unrescaled):
+    """With N = 10 a step between rescalings runs the base integrator's per-step work and no more.
+
+    From the listing: the passes over the degrees of freedom, the sums, the constraint
+    steps and the energy reads of such a step (not its call's first) are those of
+    :class:`RattleIntegrator`'s step (the composition's, the splitting's), in the same order,
+    but for OpenMM's update-context-state step, which the NVE program leaves out; the step
+    that rescales saves its start, reads the energy and sums K. With RATTLE as the
+    base the program declares RATTLE's per-DOF variables (x0, v0) and no others: on the
+    Reference and CPU platforms each per-DOF step copies every one of them per degree of
+    freedom.
+    """
+    integrator = RattleRescaleIntegrator(H, rescale_interval=10, **options)
+    base = unrescaled()
+    between = _work_of_a_step(integrator, _BETWEEN_RESCALINGS)
+    base_step = _work_of_a_step(base, {"check_system > 0.5": False, "refused < 0.5": True})
+    assert base_step[0][0] == "update context state"  # OpenMM's, which NVE leaves out
+    assert between == base_step[1:]
+    assert not [work for work in between if "energy" in work[2]]
+    rescaling = _work_of_a_step(
+        integrator,
+        _BETWEEN_RESCALINGS
+        | {
+            "rescale_count < rescale_interval - 0.5": False,
+            "rescale_count > rescale_interval - 0.5": True,
+            "rotation > 0.5": False,
+            "rotation < 0.5": True,
+            "no_factor > 0.5": False,
+            "no_factor < 0.5": True,
+        },
+    )
+    assert ("sum", "kinetic_energy", "0.5*m*v*v") in rescaling
+    assert len(rescaling) > len(between)
+    if not options:
+        assert _per_dof_variables(integrator) == _per_dof_variables(base) == {"x0", "v0"}
+        # the program before this one: F(x0) copied and the end state copied at every step
+        assert ("per DOF", "fstart", "f") not in between
+
+
+def test_a_rescaling_step_without_a_factor_returns_to_its_start_with_an_interval(spinning_cluster):
+    """N = 10, no real factor at the 10th step: the Context holds that step's start; the fix works.
+
+    The steps before it in the call (RATTLE's) are kept; the call's end is recorded where the
+    halted step left it, so the next call sees no change of state.
+    """
+    system, x, v = spinning_cluster
+    pulled = _with_pulling_force(system)
+    integrator = RattleRescaleIntegrator(H, rescale_interval=10)
+    context = _context(pulled, integrator, x, v)
+    integrator.check_context(context)
+    integrator.step(7)
+    context.setParameter("k", 500.0)  # V rises by ~5,000 kJ/mol: no factor at the 10th step
+    integrator.step(2)  # steps 8, 9: RATTLE's, no rescaling
+    before = positions_of(context), velocities_of(context), integrator.steps_taken
+    with pytest.raises(VelocityRescaleError, match="no real velocity scale"):
+        integrator.step(5)
+    assert np.array_equal(positions_of(context), before[0])
+    assert np.array_equal(velocities_of(context), before[1])
+    assert integrator.steps_taken == before[2] and integrator.rescalings == 0
+    assert integrator.getGlobalVariableByName("rescale_count") == 9  # the next step rescales
+    integrator.reset_reference_energy()
+    integrator.step(10)
+    assert integrator.rescalings == 1 and integrator.rescale_totals()["reference_resets"] == 2
+    assert abs(total_energy(context) - _kj(integrator.reference_energy)) < 1e-8
+
+
+def test_a_copy_no_step_drives_compares_every_step_and_still_sees_a_change(spinning_cluster):
+    """N = 10 deserialized as a plain CustomIntegrator: its steps record their end and see a set state.
+
+    Without this package's ``step()`` (``call_steps_left`` stays 0) the program records the
+    state every step ends in and compares every step's start with it: a state the user sets
+    between OpenMM's own calls of ``step`` retakes E_ref, and the count restarts.
+    """
+    system, x, v = spinning_cluster
+    copy = mm.XmlSerializer.deserialize(
+        mm.XmlSerializer.serialize(RattleRescaleIntegrator(H, rescale_interval=10))
+    )
+    assert type(copy) is mm.CustomIntegrator
+    context = _context(system, copy, x, v)
+    copy.step(10)
+    e_ref = copy.getGlobalVariableByName("reference_energy")
+    assert abs(total_energy(context) - e_ref) < 1e-8
+    copy.step(3)
+    context.setVelocities(1.1 * velocities_of(context))
+    hotter = total_energy(context)
+    copy.step(10)
+    assert copy.getGlobalVariableByName("reference_resets") == 2
+    assert copy.getGlobalVariableByName("reference_energy") == pytest.approx(hotter, abs=1e-9)
+    assert abs(total_energy(context) - hotter) < 1e-8  # rescaled at the 10th step after the change
 
 
 def test_one_force_evaluation_per_step_with_an_interval(water_box):

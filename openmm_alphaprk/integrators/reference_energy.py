@@ -62,8 +62,12 @@ class _ReferenceEnergy:
     #: How the warnings name the integrator ("the energy-preserving mode" …).
     _holds_energy_as = "the energy-preserving mode"
 
-    def _add_reference_energy_variables(self, energy_tolerance: float | None) -> None:
-        """Declare E_ref, its rule's state and the energy tolerance (None: automatic)."""
+    def _add_reference_energy_variables(self, energy_tolerance: float | None, end_state: bool = True) -> None:
+        """Declare E_ref, its rule's state and the energy tolerance (None: automatic).
+
+        ``end_state``: declare ``xend``, ``vend`` too, for a program whose steps record the
+        state they end in there (one that records it in x0, v0 declares none).
+        """
         automatic = energy_tolerance is None
         self.addGlobalVariable(
             "energy_tolerance", PROVISIONAL_ENERGY_TOLERANCE if automatic else energy_tolerance
@@ -82,7 +86,7 @@ class _ReferenceEnergy:
         ):
             self.addGlobalVariable(name, 0)
         self.addGlobalVariable("state_check", 1)
-        for name in ("xend", "vend"):
+        for name in ("xend", "vend") if end_state else ():
             self.addPerDofVariable(name, 0)
 
     def _add_reference_check(
@@ -137,11 +141,15 @@ class _ReferenceEnergy:
         self.addComputeGlobal("state_moved", "0")
         self.endBlock()
 
-    def _add_end_state_record(self, end_energy: str, into: tuple[str, str] = ("xend", "vend")) -> None:
-        """Store the state the step ends in (``into``: positions, velocities) and its total energy."""
+    def _add_end_state_record(self, end_energy: str, into: tuple[str, str] | None = ("xend", "vend")) -> None:
+        """Store the total energy the step ends with and the state it ends in (``into``: x, v).
+
+        ``into`` None: the energy alone (a program that records the state elsewhere).
+        """
         self.addComputeGlobal("end_energy", end_energy)
-        self.addComputePerDof(into[0], "x")
-        self.addComputePerDof(into[1], "v")
+        if into is not None:
+            self.addComputePerDof(into[0], "x")
+            self.addComputePerDof(into[1], "v")
 
     # ---------------------------------------------------------------- what the user sets and reads
     def reset_reference_energy(self) -> None:

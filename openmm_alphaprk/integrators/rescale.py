@@ -33,8 +33,9 @@ step the kinetic energy, with the energy read, and without a periodic box the ce
 mass and the inertia tensor (10 more); once per ``step()`` call the reference check's
 one; when the state was set, P (and the centre of mass and L) besides. With
 ``rescale_interval`` N > 1 the per-step ones (and the energy read) come at every N-th step
-only; the steps between are RATTLE's (or the composition's) and copy the state they end
-in (x0, v0; or ``xend``, ``vend`` for a composition), one per-DOF step.
+only; the steps between are RATTLE's program (or the composition's, or the splitting's) and
+nothing more, and the state the last step of a ``step()`` call ends in is copied once, for
+the next call's comparison.
 """
 
 from __future__ import annotations
@@ -62,15 +63,14 @@ from .variables import ALPHA, N_PARTICLES, RATTLE_RESIDUAL, RESCALE_HALTED, STEP
 CONTEXT_CHECKED = "context_checked"
 
 _AXES = {"x": "vector(1,0,0)", "y": "vector(0,1,0)", "z": "vector(0,0,1)"}
-#: The centre-of-mass velocity, per degree of freedom, from the axis weights ``axis_x`` …
-#: (1 on the degrees of freedom of that axis, else 0): no vector function, which costs a
-#: sum or per-DOF step several times as much on the Reference and CPU platforms.
-_CENTRE_OF_MASS_VELOCITY = "(momentum_x*axis_x + momentum_y*axis_y + momentum_z*axis_z)/total_mass"
-#: Velocity of the rigid-body motion at the positions x (with the rotation), per degree of freedom.
-_RIGID_VELOCITY = (
-    f"{_CENTRE_OF_MASS_VELOCITY}"
-    " + cross(vector(omega_x, omega_y, omega_z), x - vector(centre_x, centre_y, centre_z))"
-)
+#: The centre-of-mass velocity P/M, per degree of freedom, from the carried momentum.
+_CENTRE_OF_MASS_VELOCITY = "vector(momentum_x, momentum_y, momentum_z)/total_mass"
+#: The per-DOF variable that holds it where every step rescales (set where P is measured):
+#: the scaling then reads it with no vector function, which costs a per-DOF step several
+#: times as much on the Reference and CPU platforms.
+_CENTRE_VELOCITY = "centre_velocity"
+#: The rotation's part of the rigid-body velocity at the positions x, per degree of freedom.
+_ROTATION_VELOCITY = "cross(vector(omega_x, omega_y, omega_z), x - vector(centre_x, centre_y, centre_z))"
 #: Relative size of the diagonal added to the inertia tensor before it is inverted: leaves ω
 #: unchanged for any System that can rotate, and finite for a linear one (whose rotation
 #: about its axis moves no atom).
@@ -174,10 +174,13 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         and with the integrator's XML, and starts again from 0 whenever E_ref is taken
         (the first step, :meth:`reset_reference_energy`, a state set by the user:
         ``setState`` and ``setPositions`` included), so the first rescaling is the N-th
-        step after that. After a step between rescalings the energy the step ended
-        with was not read: a state set then is told from the common platform's
-        reordering by its energy against the last rescaled step's, within the
-        tolerance plus twice the largest |H − E_ref| a rescaling has removed.
+        step after that. The steps between rescalings run RATTLE's program and nothing
+        more (the listing: :meth:`program_listing`); the state a call's last step ends in
+        is recorded for the comparison at the next call's first step. After a step
+        between rescalings the energy the step ended with was not read: a state set then
+        is told from the common platform's reordering by its energy against the last
+        rescaled step's, within the tolerance plus twice the largest |H − E_ref| a
+        rescaling has removed.
 
     Raises
     ------
@@ -262,7 +265,7 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         self._stages = None if self._base is RATTLE else self._base
         self._rescale_interval = rescale_interval_setting(rescale_interval)
         super().__init__(timestep, constraint_tolerance)
-        self._add_reference_energy_variables(tolerance)
+        self._add_reference_energy_variables(tolerance, end_state=False)
         self._add_rescale_variables()
         if self._rescale_interval > 1:
             self._add_interval_variables(self._rescale_interval)
@@ -278,6 +281,8 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         elif self._stages is not None:
             self._add_record(self._stages)
         self._add_step(self._build_program, update_context_state=False, halted=RESCALE_HALTED)
+        if self._rescale_interval > 1:
+            self._add_call_end_record()
 
     def _add_rescale_variables(self) -> None:
         self.addGlobalVariable("rotation", 1)  # 0 for a periodic System
@@ -310,9 +315,13 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         ):
             self.addGlobalVariable(name, 0)
         self.addGlobalVariable(VELOCITY_SCALE, 1)
-        own = ("rigid_velocity", *(f"axis_{axis}" for axis in _AXES))
-        for name in own if self._alpha is not None else ("fstart", *own):
-            self.addPerDofVariable(name, 0)
+        # On the Reference and CPU platforms every per-DOF step copies every per-DOF variable
+        # of the program, per degree of freedom: the program declares no more than it needs,
+        # and with an interval the steps between rescalings have RATTLE's (x0, v0) alone.
+        if self._rescale_interval == 1:
+            self.addPerDofVariable(_CENTRE_VELOCITY, 0)
+            if self._alpha is None:  # α declares its own
+                self.addPerDofVariable("fstart", 0)
         if self._stages is not None and self._alpha is None:
             for name in ("xstep", "vstep"):
                 self.addPerDofVariable(name, 0)
@@ -320,48 +329,60 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
     def _add_interval_variables(self, interval: int) -> None:
         """Declare the interval's globals (``rescale_interval`` > 1 only: N = 1 is the plain program)."""
         self.addGlobalVariable("rescale_interval", interval)
-        for name in ("rescale_count", "rescalings", "rescale_excursion"):
+        for name in ("rescale_count", "rescalings", "rescale_excursion", "call_steps_left"):
             self.addGlobalVariable(name, 0)
 
     # ---------------------------------------------------------------- the program
     def _build_program(self) -> None:
         """Add the base step, then the rigid-body motion, the scale factor and the scaled velocities.
 
-        F(x0) is copied before the reference check, whose energy read would otherwise be
-        the step's first evaluation (see :meth:`~.reference_energy._ReferenceEnergy._add_reference_check`:
-        on CUDA the forces read after it were wrong).
+        With N = 1 (every step): F(x0) copied, then the reference check, the base step from
+        the copy and the rescaling. F(x0) is copied before the reference check, whose energy
+        read would otherwise be the step's first evaluation (see
+        :meth:`~.reference_energy._ReferenceEnergy._add_reference_check`: on CUDA the forces
+        read after it were wrong).
 
-        With ``rescale_interval`` N > 1 the base step is in two blocks, plain (no energy) and
-        rescaled. OpenMM decides for each read of ``f``, once, whether the force evaluation it
-        causes computes the energy too: it does if any path through the program (taking or
-        skipping every ``if`` block, regardless of its condition) reads ``energy`` before the
-        positions change. A step between rescalings therefore reads its force in a block of
-        its own (the plain step, :meth:`_add_plain_step`) from which every path to an energy
-        read crosses a position assignment: the rescaling step's own solve, or the ``x = x``
-        before the reference check's energy read (:meth:`_add_moved_start_invalidating`). The
-        rescaling step's force read, followed by its energy read, computes both in one
-        evaluation, as for N = 1.
+        With ``rescale_interval`` N > 1, after the reference check, two blocks: the step
+        between rescalings (``rescale_count`` < N), which is :class:`~.rattle.RattleIntegrator`'s
+        program (or the composition's, or the splitting's) and nothing more, and the rescaling
+        step. Each saves its own start (x0, v0; the rescaling step's also in ``xstep``,
+        ``vstep`` where the stages overwrite x0, v0). OpenMM decides for each read of ``f``,
+        once, whether the force evaluation it causes computes the energy too: it does if any
+        path through the program (taking or skipping every ``if`` block, regardless of its
+        condition) reads ``energy`` before the positions change. The only energy reads are
+        the rescaling step's own, after its last force, and the reference check's, which
+        follows an ``x = x`` (:meth:`_add_moved_start_invalidating`): so a step between
+        rescalings computes no energy, and the rescaling step's last force read computes both
+        in one evaluation, as for N = 1. The state the steps of a ``step()`` call end in is
+        recorded (x0, v0) after the call's last step only
+        (:meth:`_add_call_end_record`).
         """
-        interval = self._rescale_interval > 1
-        if interval:
-            self._add_step_start(
-                on_moved=self._add_moved_start_invalidating,
-                on_retake=_INTERVAL_RESTART,
-                carried_tolerance=_EXCURSION_TOLERANCE,
-            )
-            self.addComputeGlobal("rescale_count", "rescale_count + 1")
-            self._add_plain_step()
-            self.beginIfBlock("rescale_count > rescale_interval - 0.5")
-        else:
+        if self._rescale_interval == 1:
             self._add_step_start(on_moved=self._add_moved_start)
-        self._add_base_step()
+            self._add_base_step(first_force="fstart")
+            self._add_rescaling()
+            self._add_end_step()
+            return
+        self._add_reference_check(
+            on_moved=self._add_moved_start_invalidating,
+            previous=("x0", "v0"),
+            on_retake=_INTERVAL_RESTART,
+            carried_tolerance=_EXCURSION_TOLERANCE,
+        )
+        self.addComputeGlobal("rescale_count", "rescale_count + 1")
+        self.beginIfBlock("rescale_count < rescale_interval - 0.5")  # RATTLE's program
+        self._add_save_step_start()
+        self._add_base_step(first_force="f")
+        self.endBlock()
+        self.beginIfBlock("rescale_count > rescale_interval - 0.5")
+        self._add_save_step_start(**({} if self._stages is None else {"xstep": "x", "vstep": "v"}))
+        self._add_base_step(first_force="f")
         self._add_rescaling()
-        if interval:
-            self._add_interval_restart()
-            self.endBlock()
+        self._add_interval_restart()
+        self.endBlock()
         self._add_end_step()
 
-    def _add_step_start(self, on_moved: Callable[[], None], **check: object) -> None:
+    def _add_step_start(self, on_moved: Callable[[], None]) -> None:
         """F(x0) copied, then the reference check (and, for a composition, the step's start kept)."""
         if self._stages is None:
             # x0, v0 hold the last step's end (written at the end of the step): the start of
@@ -370,53 +391,51 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
             self.addComputePerDof("fstart", "f")
             if self._alpha is not None:
                 self.addComputePerDof("fmid", "f")
-            self._add_reference_check(on_moved=on_moved, previous=("x0", "v0"), **check)
+            self._add_reference_check(on_moved=on_moved, previous=("x0", "v0"))
         else:  # the stages overwrite x0, v0: the step's start kept for a step without a factor
-            self._add_save_step_start(xstep="x", vstep="v", fstart="f")
-            moved = self._add_rigid_body_measurement if on_moved == self._add_moved_start else on_moved
-            self._add_reference_check(on_moved=moved, **check)
+            self.addComputePerDof("fstart", "f")
+            self._add_reference_check(on_moved=self._add_rigid_body_measurement, previous=("x0", "v0"))
+            self._add_save_step_start(xstep="x", vstep="v")
 
-    def _add_base_step(self) -> None:
-        """Add the base step from x0, v0 (F(x0) in ``fstart``): RATTLE, a composition, a splitting or α's.
+    def _add_base_step(self, first_force: str) -> None:
+        """Add the base step from x0, v0, F(x0) in ``first_force``: RATTLE, a composition, a splitting, α's.
 
         With ``alpha``, α-RATTLE's step or composition (:meth:`~.pieces._StepProgram._add_alpha_step`),
         its failed midpoint iterations counted: a failed step returns its start, which the
         rescaling then scales by s ≈ 1, and :meth:`step` raises.
         """
         if self._alpha is None:
-            self._add_substeps(self._base.substeps(), first_force="fstart")
+            self._add_substeps(self._base.substeps(), first_force=first_force)
             return
-        self._add_alpha_step(self._composition, first_force="fstart")
+        self._add_alpha_step(self._composition, first_force=first_force)
         self.addComputeGlobal("midpoint_failures", "midpoint_failures + midpoint_failed")
 
-    def _add_plain_step(self) -> None:
-        """Between rescalings (``rescale_count`` < N): the RATTLE step, then the state it ends in recorded.
-
-        No energy read and no sum: the step costs what RATTLE's (or the composition's) does
-        but for the copy of its end (x0, v0; ``xend``, ``vend`` for a composition).
-        ``end_energy`` keeps the last rescaled step's value (≈ E_ref); the reference check
-        widens its energy test by the excursion for that (:data:`_EXCURSION_TOLERANCE`).
-        """
-        self.beginIfBlock("rescale_count < rescale_interval - 0.5")
-        self._add_base_step()
-        into = ("xend", "vend") if self._stages is not None else ("x0", "v0")
-        self.addComputePerDof(into[0], "x")
-        self.addComputePerDof(into[1], "v")
-        self.endBlock()
-
     def _add_moved_start_invalidating(self) -> None:
-        """Where the state was set: as :meth:`_add_moved_start`, then ``x = x`` before the energy read.
+        """Where the state was set (``rescale_interval`` > 1): P and L measured, then ``x = x``.
 
         The assignment changes nothing (on the common platform it comes before the step's
         constraint steps in program text, so it is stored as a zero displacement) but ends
-        the forces' validity for OpenMM's analysis: the plain step's force evaluation then
-        computes no energy for this read, which evaluates the energy alone, here only.
+        the forces' validity for OpenMM's analysis: the last force read of a step between
+        rescalings then computes no energy for the reference check's energy read, which
+        evaluates the forces and the energy together, here only.
         """
-        if self._stages is None:
-            self._add_moved_start()
-        else:
-            self._add_rigid_body_measurement()
+        self._add_rigid_body_measurement()
         self.addComputePerDof("x", "x")
+
+    def _add_call_end_record(self) -> None:
+        """After the last step of a ``step()`` call (``rescale_interval`` > 1): its end in x0, v0.
+
+        :meth:`step` sets ``call_steps_left`` to the call's steps; the program counts it
+        down and copies the state at 0, where the next call's first step compares its start
+        with it (:mod:`~.reference_energy`). Outside the step's block, so that a call halted
+        by a step without a factor records the start it went back to. A copy of the program
+        that no :meth:`step` drives (``call_steps_left`` = 0) records after every step.
+        """
+        self.addComputeGlobal("call_steps_left", "max(call_steps_left - 1, 0)")
+        self.beginIfBlock("call_steps_left < 0.5")
+        self.addComputePerDof("x0", "x")
+        self.addComputePerDof("v0", "v")
+        self.endBlock()
 
     def _add_rescaling(self) -> None:
         """Add the rigid-body motion, the scale factor, the halt without one and the scaled velocities."""
@@ -440,19 +459,19 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
     def _add_scaling(self) -> None:
         """Scale the velocities relative to the rigid-body motion; record the state the step ends in."""
         self.beginIfBlock("no_factor < 0.5")
+        centre = _CENTRE_VELOCITY if self._rescale_interval == 1 else _CENTRE_OF_MASS_VELOCITY
         self.beginIfBlock("rotation > 0.5")
-        self.addComputePerDof("rigid_velocity", _RIGID_VELOCITY)
-        self.addComputePerDof("v", f"rigid_velocity + {VELOCITY_SCALE}*(v - rigid_velocity)")
-        self.endBlock()
-        self.beginIfBlock("rotation < 0.5")  # one per-DOF step fewer where it matters: large boxes
         self.addComputePerDof(
-            "v", f"centre + {VELOCITY_SCALE}*(v - centre); centre = {_CENTRE_OF_MASS_VELOCITY}"
+            "v", f"rigid + {VELOCITY_SCALE}*(v - rigid); rigid = {centre} + {_ROTATION_VELOCITY}"
         )
+        self.endBlock()
+        self.beginIfBlock("rotation < 0.5")  # no vector function at every step: large boxes
+        self.addComputePerDof("v", f"centre + {VELOCITY_SCALE}*(v - centre); centre = {centre}")
         self.endBlock()
         self._add_end_state_record(
             "potential_energy + rigid_kinetic_energy + scale_squared*internal;"
             "internal = kinetic_energy - rigid_kinetic_energy",
-            into=("xend", "vend") if self._stages is not None else ("x0", "v0"),
+            into=self._end_state_variables(),
         )
         self.addComputeGlobal("sum_rattle_residual", f"sum_rattle_residual + {RATTLE_RESIDUAL}")
         self.addComputeGlobal(
@@ -465,20 +484,16 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         self.addComputeGlobal("max_abs_scale_change", f"max(max_abs_scale_change, abs({VELOCITY_SCALE} - 1))")
         self.endBlock()
 
+    def _end_state_variables(self) -> tuple[str, str] | None:
+        """Where a rescaling step records its end: x0, v0 (N = 1), read by the next step's reference check.
+
+        None with ``rescale_interval`` > 1, where the call's last step records it
+        (:meth:`_add_call_end_record`).
+        """
+        return None if self._rescale_interval > 1 else ("x0", "v0")
+
     def _add_system_measurements(self) -> None:
         self.addComputeSum("total_mass", "m/3")
-        self._add_axis_weights()
-
-    def _add_axis_weights(self) -> None:
-        """Set the per-DOF axis weights ``axis_x`` … (1 on that axis's degrees of freedom, else 0).
-
-        Set at the system check of every ``step()`` call and whenever the state was set
-        (the reference check's block): a Context that does not hold them (a new one, or
-        one reinitialized without its per-DOF values) holds no ``xend`` either, so its first
-        step always sets them.
-        """
-        for axis, unit_vector in _AXES.items():
-            self.addComputePerDof(f"axis_{axis}", unit_vector)
 
     def _add_moved_start(self) -> None:
         """Where the state was set: the step starts from it (x0, v0), and P (and L) are measured."""
@@ -490,16 +505,20 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         """P and (with ``rotation``) L about the centre of mass, from the state a step starts from.
 
         In the reference check's block: at the first step, after a reset and where the
-        state was set. Carried to the steps after it, which RATTLE keeps them for; zero
-        without ``translation`` (forces that do not conserve momentum).
+        state was set. Carried to the steps after it, which RATTLE keeps them for (P/M also
+        per degree of freedom, in ``centre_velocity``, where every step rescales); zero
+        without ``translation`` (forces that do not conserve momentum). A Context that does
+        not hold the program's per-DOF values (a new one, or one reinitialized without them)
+        holds no x0, v0 either, so its first step measures them.
         """
-        self._add_axis_weights()
         self.beginIfBlock(f"{CONTEXT_CHECKED} < 0.5")
         self._add_conservation_test()
         self.endBlock()
-        for axis in _AXES:
-            self._add_sum(f"momentum_{axis}", f"m*v*axis_{axis}")
+        for axis, unit_vector in _AXES.items():
+            self._add_sum(f"momentum_{axis}", f"m*v*{unit_vector}")
             self.addComputeGlobal(f"momentum_{axis}", f"translation*momentum_{axis}")
+        if self._rescale_interval == 1:
+            self.addComputePerDof(_CENTRE_VELOCITY, _CENTRE_OF_MASS_VELOCITY)
         self.beginIfBlock("rotation > 0.5")
         self._add_centre_of_mass()
         r = "(x - vector(centre_x, centre_y, centre_z))"
@@ -522,8 +541,8 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         forces here: :meth:`check_context` reads the System's forces instead.
         """
         net = " + ".join(f"net_force_{axis}^2" for axis in _AXES)
-        for axis in _AXES:
-            self._add_sum(f"net_force_{axis}", f"f*axis_{axis}")
+        for axis, unit_vector in _AXES.items():
+            self._add_sum(f"net_force_{axis}", f"f*{unit_vector}")
         self._add_sum("force_scale", "abs(f)")
         self.addComputeGlobal("net_force", f"sqrt({net})")
         self.addComputeGlobal(
@@ -616,6 +635,8 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         if steps <= 0:
             return
         self.setGlobalVariableByName(RESCALE_HALTED, 0)
+        if "call_steps_left" in self._global_names():  # a program from before it records every step
+            self.setGlobalVariableByName("call_steps_left", steps)
         before = self.steps_taken
         failures = self._midpoint_failures()
         super().step(steps)
