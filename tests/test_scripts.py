@@ -199,7 +199,7 @@ elif args[:2] == ["-m", "openmm_alphaprk.benchmarks.dhfr_openmm_settings"]:
     from openmm_alphaprk.runs.integrator_names import parse_integrator
     names = args[args.index("--integrators") + 1 : args.index("--steps")]
     [parse_integrator(n) for n in names]
-    record({"dhfr": names})
+    record({"dhfr": names, "smooth": "--smooth" in args})
     with open(value("--json"), "w", encoding="utf-8") as handle:
         handle.write("{}")
 elif args and args[0].endswith("splitting_survey.py"):
@@ -238,6 +238,7 @@ def test_cuda_check_runs_its_commands_with_arguments_the_package_accepts(tmp_pat
         "STAND_IN_LOG": str(log),
         "PYTHONPATH": str(ROOT),
         "SURVEYS": "1",
+        "PHYSICS": "1",
     }
     (tmp_path / "work").mkdir()
     result = subprocess.run(
@@ -252,22 +253,36 @@ def test_cuda_check_runs_its_commands_with_arguments_the_package_accepts(tmp_pat
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
     calls = [json.loads(line) for line in log.read_text(encoding="utf-8").splitlines()]
     benches = [c["bench"] for c in calls if "bench" in c]
-    # the long runs, mixed precision, one process; its report; cost on three boxes and dhfr
-    assert benches == ["long", "long", "cost", "cost", "cost", "cost", "physics", "physics"]
+    # the long runs on villin then dhfr, mixed precision, one process; their reports; cost on two
+    # boxes and dhfr
+    assert benches == ["long"] * 4 + ["cost"] * 3 + ["physics", "physics"]
     stress, physics_report = [c["args"] for c in calls if c.get("bench") == "physics"]
     assert stress[0] == "stress" and stress[stress.index("--precision") + 1] == "mixed"
     assert physics_report[:1] == ["report"] and "--parts" in physics_report
-    long_run, report = [c["args"] for c in calls if c.get("bench") == "long"]
-    assert "--report" in report and "--report" not in long_run
-    assert long_run[long_run.index("--precision") + 1] == "mixed"
-    assert "rattle+rescale@10" in long_run and "energy4" in long_run
+    villin, dhfr, *reports = [c["args"] for c in calls if c.get("bench") == "long"]
+    assert all("--report" in report for report in reports) and "--report" not in villin + dhfr
+    for long_run, (system, picoseconds) in zip((villin, dhfr), (("villin", "1000"), ("dhfr", "200"))):
+        assert long_run[long_run.index("--system") + 1] == system
+        assert long_run[long_run.index("--time") + 1] == picoseconds
+        assert [
+            long_run[long_run.index(flag) + 1] for flag in ("--precision", "--timestep", "--hydrogen-mass")
+        ] == [
+            "mixed",
+            "4",
+            "3",
+        ]
+        assert long_run[long_run.index("--integrators") + 1 :][:3] == [
+            "rattle",
+            "rattle+rescale",
+            "rattle+rescale@10",
+        ]
     (tests,) = [c for c in calls if "pytest" in c]
     assert tests["platforms"] == "CUDA:mixed,CUDA:single"
     assert all((ROOT / arg).is_file() for arg in tests["pytest"] if arg.startswith("tests/"))
-    assert [c["dhfr"] for c in calls if "dhfr" in c] == [
-        ["rattle", "rattle+rescale", "rattle+rescale@10", "split-me", "split-me+rescale", "rattle4+rescale"]
-    ]
-    assert "split-me+rescale" in long_run
+    rows = ["rattle", "rattle+rescale", "rattle+rescale@10", "rattle+rescale@100", "rattle4+rescale@10"]
+    assert [(c["dhfr"], c["smooth"]) for c in calls if "dhfr" in c] == [(rows, False), (rows, True)]
+    cost_dhfr = [c["args"] for c in calls if c.get("bench") == "cost"][-1]
+    assert cost_dhfr[cost_dhfr.index("--hydrogen-mass") + 1] == "3" and "rattle+rescale@100" in cost_dhfr
     surveys = [c["survey"] for c in calls if "survey" in c]
     assert len(surveys) == 2 and all(s[s.index("--precision") + 1] == "mixed" for s in surveys)
     assert {p.name for p in out.iterdir()} == {"log.txt", "long.tar.gz", "cost.tar.gz", "physics.json"}

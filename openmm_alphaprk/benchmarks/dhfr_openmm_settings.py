@@ -11,15 +11,17 @@ that integrator, ``VerletIntegrator``, and the package's integrators named on th
 command line, all at the same step and constraint tolerance, and prints ns/day and
 each one's step time against ``LangevinMiddleIntegrator``'s and ``VerletIntegrator``'s.
 The package's integrators run without the ``CMMotionRemover`` (an NVE run removes it;
-OpenMM's benchmark keeps it, as the Langevin and Verlet rows here do), each after
-``check_context`` as the package's driver calls it (without it, RATTLE + rescaling does not
-know the box is periodic and sums the rigid-body motion every step: the 2026-11-27 H100
-measurement, made so, cost 3.5x RATTLE's step).
+OpenMM's benchmark keeps it, as the Langevin and Verlet rows here do), as a drop-in: with no
+call but OpenMM's (the rescaling decides from the forces which rigid-body motion it keeps);
+``--check-context`` calls ``check_context`` on each first, as the package's driver does.
+``--smooth`` runs every row on the System made smooth as the package recommends for NVE
+(:func:`openmm_alphaprk.smooth_forces.make_smooth`: Lennard-Jones switched over the last
+0.1 nm, Ewald error tolerance 1e-5) instead of OpenMM's settings.
 
 Example (CUDA)::
 
     python -m openmm_alphaprk.benchmarks.dhfr_openmm_settings --platform CUDA --precision mixed \
-        --integrators rattle rattle+rescale rattle4+rescale --json dhfr.json
+        --integrators rattle rattle+rescale rattle+rescale@10 --json dhfr.json
 """
 
 from __future__ import annotations
@@ -39,6 +41,7 @@ import openmm.unit as unit
 
 from openmm_alphaprk.integrators.restore import counted_force_evaluations
 from openmm_alphaprk.runs.integrator_names import label, make_integrator
+from openmm_alphaprk.smooth_forces import make_smooth
 
 PDB = "5dfr_solv-cube_equil.pdb.gz"
 
@@ -98,13 +101,21 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--precision", default=None, choices=("single", "mixed", "double"))
     parser.add_argument("--timestep", type=float, default=4.0, help="fs (default 4, OpenMM's)")
     parser.add_argument("--hydrogen-mass", type=float, default=1.5, help="amu (default 1.5, OpenMM's)")
-    parser.add_argument("--integrators", nargs="*", default=["rattle", "rattle+rescale", "rattle4+rescale"])
+    parser.add_argument(
+        "--integrators",
+        nargs="*",
+        default=["rattle", "rattle+rescale", "rattle+rescale@10", "rattle+rescale@100"],
+    )
+    parser.add_argument("--smooth", action="store_true", help="every row on the System made smooth")
+    parser.add_argument("--check-context", action="store_true", help="call check_context on each first")
     parser.add_argument("--steps", type=int, default=500, help="steps per row per round (default 500)")
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--json")
     args = parser.parse_args(argv)
     started = time.perf_counter()
     system, positions, _ = openmm_benchmark_system(args.hydrogen_mass)
+    if args.smooth:
+        make_smooth(system)
     nve_system = _without_cm_remover(system)
     platform = mm.Platform.getPlatformByName(args.platform)
     properties = {"Precision": args.precision} if args.precision else {}
@@ -112,7 +123,7 @@ def main(argv: list[str] | None = None) -> int:
     contexts = {}
     for name, (integrator, as_benchmark) in rows.items():
         context = mm.Context(system if as_benchmark else nve_system, integrator, platform, properties)
-        if hasattr(integrator, "check_context"):  # the package's: periodic box, platform (as the driver does)
+        if args.check_context and hasattr(integrator, "check_context"):  # as the package's driver does
             integrator.check_context(context)
         context.setPositions(positions)
         if not contexts:  # OpenMM's benchmark: velocities at 300 K (no minimization for this test)
@@ -145,12 +156,17 @@ def main(argv: list[str] | None = None) -> int:
     }
     langevin, verlet = medians["LangevinMiddleIntegrator"], medians[label("verlet")]
     precision = f" ({args.precision})" if args.precision else ""
+    forces = (
+        "LJ switched over the last 0.1 nm and Ewald tolerance 1e-5 (the package's smooth forces)"
+        if args.smooth
+        else "Ewald tolerance 5e-4"
+    )
+    checked = "check_context called" if args.check_context else "no call but OpenMM's"
     header = (
         f"DHFR as OpenMM's benchmark builds it ({system.getNumParticles()} atoms, Amber99SB/TIP3P, "
-        "PME 0.9 nm, "
-        f"Ewald tolerance 5e-4, HBonds, H {args.hydrogen_mass:g} amu), {args.timestep:g} fs, platform "
-        f"{args.platform}{precision}; median of {args.rounds} interleaved rounds x {args.steps} steps, "
-        "each between two getState(energy=True)"
+        f"PME 0.9 nm, {forces}, HBonds, H {args.hydrogen_mass:g} amu), {args.timestep:g} fs, platform "
+        f"{args.platform}{precision}; the package's integrators NVE, {checked}; median of {args.rounds} "
+        f"interleaved rounds x {args.steps} steps, each between two getState(energy=True)"
     )
     print(header)
     print(

@@ -3,36 +3,42 @@
 # of at most 9 minutes on a machine with CUDA (OpenMM and its CUDA plugin importable, e.g. from
 # carried wheels; the package importable from the checkout):
 #   A. at the same time: the common-platform and rescaling tests on CUDA (mixed and single), and
-#      `alphaprk bench long` on a water box in mixed precision, the rows one after the other in one
-#      process (the one-evaluation rows LONG_TIME ps, the others MULTI_TIME ps; stopped with
-#      SIGTERM after LONG_LIMIT s, which keeps what it ran), then its report. Rows in processes of
-#      their own (a comma-free GROUPS_OF_ROWS) share the GPU by time-slicing, which slows the rows
-#      that synchronise with the host every step many times over (seen on an H100, 2026-11-27);
-#      single precision does not conserve energy (the same run), so LONG_PRECISIONS is mixed;
-#   B. then alone on the GPU: `alphaprk bench cost` on each of COST_SYSTEMS (mixed), on DHFR with
-#      the package's settings at 2 fs, and OpenMM's DHFR benchmark system as OpenMM builds it at
-#      4 fs (openmm_alphaprk.benchmarks.dhfr_openmm_settings), for ns/day beside OpenMM's published figure;
+#      `alphaprk bench long` in mixed precision at LONG_TIMESTEP fs with hydrogens of LONG_HMASS amu,
+#      on each of LONG_SYSTEMS ("system:ps" pairs) one after the other, the rows (GROUPS_OF_ROWS: RATTLE,
+#      rescaling every step, every 10th and every 100th) one after the other in one process (stopped with SIGTERM
+#      after LONG_LIMIT s, which keeps what it ran), then its report. Rows in processes of their own
+#      (a comma-free GROUPS_OF_ROWS) share the GPU by time-slicing, which slows the rows that
+#      synchronise with the host every step many times over (seen on an H100, 2026-11-27); single
+#      precision does not conserve energy (the same run), so the long runs are mixed;
+#   B. then alone on the GPU: `alphaprk bench cost` on each of COST_SYSTEMS (mixed, 2 fs), on DHFR with
+#      the package's settings at 4 fs with hydrogens of 3 amu, and OpenMM's DHFR benchmark system as
+#      OpenMM builds it at 4 fs (openmm_alphaprk.benchmarks.dhfr_openmm_settings), for ns/day beside
+#      OpenMM's published figure and LangevinMiddleIntegrator's, then the same with the package's
+#      smooth forces (--smooth);
 #   C. the explicit family's survey (tools/scripts/splitting_survey.py) on villin at 2 fs and on
 #      dhfr at 4 fs with hydrogens of 3 amu (its start "dhfr-h3" built beforehand like dhfr); off by
 #      default since docs/splitting.md has its CPU tables (SURVEYS=1 runs it);
 #   D. the physics stress test on a larger box (docs/physics.md): `alphaprk bench physics stress` of
 #      RATTLE + rescaling beside RATTLE, PHYSICS_TIME ps at 4 fs on PHYSICS_SYSTEM in mixed precision
 #      (stopped after PHYSICS_LIMIT s, which keeps what it ran), then its report (partition
-#      temperatures in windows) as $OUT/physics.json.
+#      temperatures in windows) as $OUT/physics.json; off by default (PHYSICS=1 runs it).
 # Usage: OUT=folder tools/scripts/cuda_check.sh
-# The 21k- and 72k-atom boxes (tools/scripts/systems/*.toml) and dhfr are built and equilibrated
-# on first use, minutes on the CPU: build them before the GPU is lent and carry the cache, e.g.
+# The 21k- and 72k-atom boxes (tools/scripts/systems/*.toml), dhfr and the starts with hydrogens of
+# 3 amu are built and equilibrated on first use, minutes on the CPU: build them before the GPU is
+# lent and carry the cache, e.g.
 #   ALPHAPRK_CACHE_DIR=$PWD/.devcache python -c "from openmm_alphaprk.systems import prepare_system as p;
-#       [p(n) for n in ('tools/scripts/systems/tip3p-6nm.toml', 'tools/scripts/systems/tip3p-9nm.toml', 'dhfr')];
-#       from openmm_alphaprk.systems import load_definition as d; p(d('dhfr').with_hydrogen_mass(3))"
+#       [p(n) for n in ('tools/scripts/systems/tip3p-6nm.toml', 'dhfr')];
+#       from openmm_alphaprk.systems import load_definition as d;
+#       [p(d(n).with_hydrogen_mass(3)) for n in ('villin', 'dhfr')]"
 # then on the GPU machine export ALPHAPRK_CACHE_DIR to the carried folder (the key holds the
 # definition's content and OpenMM's version).
 # Files: $OUT/log.txt (everything printed), $OUT/long.tar.gz (test log, long-run folders without
-# checkpoints and trajectories; written when part A ends) and $OUT/cost.tar.gz (cost JSONs). Knobs (environment): PLATFORM (CUDA),
-# PRECISIONS of the tests ("mixed single"), LONG_PRECISIONS ("mixed"), LONG_SYSTEM (tip3p-3nm),
-# LONG_TIME (250), MULTI_TIME (100), LONG_LIMIT (300), TEST_LIMIT (280), COST_SYSTEMS, COST_STEPS
-# (200), COST_ROUNDS (3), DHFR (1), SURVEYS (0), TESTS (the test files; "none": no tests), GROUPS_OF_ROWS,
-# PHYSICS (1), PHYSICS_SYSTEM (tip3p-3nm), PHYSICS_TIME (200), PHYSICS_LIMIT (150).
+# checkpoints and trajectories; written when part A ends) and $OUT/cost.tar.gz (cost JSONs). Knobs
+# (environment): PLATFORM (CUDA), PRECISIONS of the tests ("mixed single"), LONG_SYSTEMS
+# ("villin:1000 dhfr:200"), LONG_TIMESTEP (4), LONG_HMASS (3; empty: none, for water), LONG_LIMIT (330),
+# TEST_LIMIT (300), COST_SYSTEMS, COST_STEPS (200), COST_ROUNDS (3), COST_LIMIT (60 s per system), DHFR (1), SURVEYS (0), TESTS
+# (the test files; "none": no tests), GROUPS_OF_ROWS, PHYSICS (0), PHYSICS_SYSTEM (tip3p-3nm),
+# PHYSICS_TIME (200), PHYSICS_LIMIT (150).
 set -uo pipefail
 OUT=${OUT:-cuda-check}
 mkdir -p "$OUT"
@@ -41,29 +47,29 @@ WORK=${WORK:-$(mktemp -d)}
 export PYTHONUNBUFFERED=1
 PLATFORM=${PLATFORM:-CUDA}
 PRECISIONS=${PRECISIONS:-mixed single}
-LONG_SYSTEM=${LONG_SYSTEM:-tip3p-3nm}
-LONG_PRECISIONS=${LONG_PRECISIONS:-mixed}
-LONG_TIME=${LONG_TIME:-250}
-MULTI_TIME=${MULTI_TIME:-100}
-LONG_LIMIT=${LONG_LIMIT:-300}
-TEST_LIMIT=${TEST_LIMIT:-280}
-COST_SYSTEMS=${COST_SYSTEMS:-tip3p-3nm tools/scripts/systems/tip3p-6nm.toml tools/scripts/systems/tip3p-9nm.toml}
+LONG_SYSTEMS=${LONG_SYSTEMS:-villin:1000 dhfr:200}
+LONG_TIMESTEP=${LONG_TIMESTEP:-4}
+LONG_HMASS=${LONG_HMASS-3}
+LONG_LIMIT=${LONG_LIMIT:-330}
+TEST_LIMIT=${TEST_LIMIT:-300}
+COST_SYSTEMS=${COST_SYSTEMS:-tip3p-3nm tools/scripts/systems/tip3p-6nm.toml}
 COST_STEPS=${COST_STEPS:-200}
+COST_LIMIT=${COST_LIMIT:-60}
 COST_ROUNDS=${COST_ROUNDS:-3}
 DHFR=${DHFR:-1}
 SURVEYS=${SURVEYS:-0}
-PHYSICS=${PHYSICS:-1}
+PHYSICS=${PHYSICS:-0}
 PHYSICS_SYSTEM=${PHYSICS_SYSTEM:-tip3p-3nm}
 PHYSICS_TIME=${PHYSICS_TIME:-200}
 PHYSICS_LIMIT=${PHYSICS_LIMIT:-150}
 TESTS=${TESTS:-tests/test_common_platform.py tests/test_rescale.py}
 ALPHAPRK="python3 -m openmm_alphaprk"
 # the rows of bench long; one process per group (a comma joins rows that run one after the other)
-INTERVAL_ROWS="rattle+rescale@10 rattle4+rescale@10"
-GROUPS_OF_ROWS=${GROUPS_OF_ROWS:-verlet,rattle,rattle+rescale,rattle+rescale@10,split-me,split-me+rescale,alpha4=0,rattle4+rescale,energy4}
-# the explicit family's rows of bench cost
-SPLIT_ROWS="split-me split-me+rescale split3-me"
+GROUPS_OF_ROWS=${GROUPS_OF_ROWS:-rattle,rattle+rescale,rattle+rescale@10,rattle+rescale@100}
 ROWS=${GROUPS_OF_ROWS//,/ }
+# the rows of bench cost: the intervals beside every step and RATTLE
+INTERVAL_ROWS="rattle+rescale@10 rattle+rescale@100 rattle4+rescale@10"
+COST_ROWS="verlet rattle rattle+rescale $INTERVAL_ROWS rattle4+rescale split-me+rescale"
 {
 nvidia-smi --query-gpu=name,driver_version --format=csv,noheader 2>/dev/null || echo "no nvidia-smi"
 python3 -c "import openmm; print('OpenMM', openmm.__version__)"
@@ -78,21 +84,25 @@ if [ "$TESTS" != none ]; then
     tests=$!
 fi
 pids=""
-for precision in $LONG_PRECISIONS; do
-    for group in $GROUPS_OF_ROWS; do
-        timeout "$LONG_LIMIT" $ALPHAPRK bench long --system "$LONG_SYSTEM" --platform "$PLATFORM" \
-            --precision "$precision" --time "$LONG_TIME" --time-multi "$MULTI_TIME" --integrators ${group//,/ } \
-            --output "$WORK/long_$precision" --no-progress >"$WORK/long_${precision}_${group//[^a-z0-9]/_}.log" 2>&1 &
-        pids="$pids $!"
-    done
+export ALPHAPRK LONG_SYSTEMS LONG_TIMESTEP LONG_HMASS PLATFORM WORK
+for group in $GROUPS_OF_ROWS; do
+    # the systems one after the other, each over its own ps; timeout's SIGTERM goes to the whole
+    # group: the run keeps what it ran, and the loop starts no other system after it
+    timeout "$LONG_LIMIT" bash -c 'trap "stopped=1" TERM; for pair in $LONG_SYSTEMS; do
+        [ -n "${stopped:-}" ] && break
+        $ALPHAPRK bench long --system "${pair%%:*}" --time "${pair##*:}" --timestep "$LONG_TIMESTEP" \
+            ${LONG_HMASS:+--hydrogen-mass $LONG_HMASS} --platform "$PLATFORM" --precision mixed --integrators ${1//,/ } \
+            --output "$WORK/long_mixed" --no-progress
+    done' rows "$group" >"$WORK/long_mixed_${group//[^a-z0-9]/_}.log" 2>&1 &
+    pids="$pids $!"
 done
 wait $pids
 echo "long runs stopped or done after $((SECONDS - start)) s"
-for precision in $LONG_PRECISIONS; do
-    echo "-- bench long, $PLATFORM $precision (report of what ran)"
-    $ALPHAPRK bench long --system "$LONG_SYSTEM" --platform "$PLATFORM" --precision "$precision" \
-        --time "$LONG_TIME" --time-multi "$MULTI_TIME" --integrators $ROWS --output "$WORK/long_$precision" \
-        --report --no-progress 2>&1 | grep -v "^ *$"
+for pair in $LONG_SYSTEMS; do
+    echo "-- bench long, ${pair%%:*}, $PLATFORM mixed (report of what ran)"
+    $ALPHAPRK bench long --system "${pair%%:*}" --time "${pair##*:}" --timestep "$LONG_TIMESTEP" \
+        ${LONG_HMASS:+--hydrogen-mass $LONG_HMASS} --platform "$PLATFORM" --precision mixed --integrators $ROWS \
+        --output "$WORK/long_mixed" --report --no-progress 2>&1 | grep -v "^ *$"
 done
 if [ -n "$tests" ]; then
     wait "$tests"
@@ -106,22 +116,21 @@ i=0
 for system in $COST_SYSTEMS; do
     i=$((i + 1))
     echo "-- cost, $system, mixed ($((SECONDS - start)) s)"
-    timeout 60 $ALPHAPRK bench cost --system "$system" --platform "$PLATFORM" --precision mixed \
-        --steps "$COST_STEPS" --rounds "$COST_ROUNDS" --energy-steps 10 \
-        --integrators verlet rattle rattle+rescale $INTERVAL_ROWS $SPLIT_ROWS alpha4=0 rattle4+rescale energy4 \
+    timeout "$COST_LIMIT" $ALPHAPRK bench cost --system "$system" --platform "$PLATFORM" --precision mixed \
+        --steps "$COST_STEPS" --rounds "$COST_ROUNDS" --energy-steps 10 --integrators $COST_ROWS \
         --json "$WORK/cost_${i}_$(basename "$system" .toml).json" 2>&1 | grep -v "^round\|^energy pass\|unsupported OpenCL"
 done
 if [ "$DHFR" = 1 ]; then
-    echo "-- cost, dhfr (package settings), 2 fs, mixed ($((SECONDS - start)) s)"
-    timeout 70 $ALPHAPRK bench cost --system dhfr --platform "$PLATFORM" --precision mixed \
-        --steps "$COST_STEPS" --rounds "$COST_ROUNDS" --energy-steps 10 \
-        --integrators verlet rattle rattle+rescale $INTERVAL_ROWS $SPLIT_ROWS alpha4=0 rattle4+rescale \
-        --json "$WORK/cost_dhfr_2fs.json" 2>&1 | grep -v "^round\|^energy pass\|unsupported OpenCL"
-    echo "-- DHFR as OpenMM's benchmark builds it, 4 fs, mixed ($((SECONDS - start)) s)"
-    timeout 50 python3 -m openmm_alphaprk.benchmarks.dhfr_openmm_settings --platform "$PLATFORM" --precision mixed \
-        --integrators rattle rattle+rescale ${INTERVAL_ROWS%% *} split-me split-me+rescale rattle4+rescale \
-        --steps 500 --rounds 3 \
-        --json "$WORK/dhfr_openmm_settings.json" 2>&1
+    echo "-- cost, dhfr (package settings), 4 fs, hydrogens 3 amu, mixed ($((SECONDS - start)) s)"
+    timeout "$((COST_LIMIT + 10))" $ALPHAPRK bench cost --system dhfr --timestep 4 --hydrogen-mass 3 --platform "$PLATFORM" \
+        --precision mixed --steps "$COST_STEPS" --rounds "$COST_ROUNDS" --energy-steps 10 --integrators $COST_ROWS \
+        --json "$WORK/cost_dhfr_4fs_hmr3.json" 2>&1 | grep -v "^round\|^energy pass\|unsupported OpenCL"
+    for forces in openmm smooth; do
+        echo "-- DHFR as OpenMM's benchmark builds it, 4 fs, mixed, $forces forces ($((SECONDS - start)) s)"
+        timeout 50 python3 -m openmm_alphaprk.benchmarks.dhfr_openmm_settings --platform "$PLATFORM" --precision mixed \
+            $([ "$forces" = smooth ] && echo --smooth) --integrators rattle rattle+rescale $INTERVAL_ROWS \
+            --steps 500 --rounds 3 --json "$WORK/dhfr_openmm_settings_$forces.json" 2>&1
+    done
 fi
 if [ "$SURVEYS" = 1 ]; then
     echo "== C: the explicit family against RATTLE at equal force evaluations, mixed ($((SECONDS - start)) s)"
