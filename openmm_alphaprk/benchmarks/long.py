@@ -80,6 +80,11 @@ class LongRow:
     drift_per_dof: float = float("nan")
     drift_per_dof_standard_error: float = float("nan")
     drift_resolved: bool = False
+    #: For a row that rescales every N > 1 steps whose energy rows fall on its rescaling steps only
+    #: in part: the drift over those rows alone (NaN otherwise).
+    drift_at_rescaling_per_dof: float = float("nan")
+    drift_at_rescaling_standard_error: float = float("nan")
+    rescaling_samples: int = 0
     rms_residual: float = float("nan")
     max_abs_residual: float = float("nan")
     worst_window_rms: float = float("nan")
@@ -236,6 +241,7 @@ def analyse_rows(
             failure=failures.get(name, ""),
         )
         _energy_statistics(row, times, residuals, dof, window_ps, blocks)
+        _rescaling_step_drift(row, energies[:, 0], times, residuals, dof, blocks)
         _speed(row, _timing(run), timestep_ps)
         _summary_fields(row, run)
         if (run / MOMENTUM_FILE).is_file():
@@ -268,6 +274,35 @@ def _energy_statistics(
         fit = block_drift(times[1:], after, blocks)
         row.drift_per_dof, row.drift_per_dof_standard_error = fit.per_dof(dof)
         row.drift_resolved = fit.resolved
+
+
+def _rescaling_step_drift(
+    row: LongRow, steps: np.ndarray, times: np.ndarray, residuals: np.ndarray, dof: int, blocks: int
+) -> None:
+    """Fit the drift over the energy rows at rescaling steps, for ``@N`` rows with rows between them too.
+
+    Where the energy interval divides N (e.g. 50 and N = 100) every other row samples H between
+    rescalings, where it moves as RATTLE's does; the rows at multiples of N hold H = E_ref.
+    """
+    interval = getattr(parse_integrator(row.integrator), "rescale_interval", 1)
+    at_rescaling = (np.rint(steps).astype(np.int64) % interval == 0)[1:]
+    if interval <= 1 or at_rescaling.all():
+        return
+    row.rescaling_samples = int(at_rescaling.sum())
+    after = residuals[1:][at_rescaling]
+    if after.size >= blocks and np.all(np.isfinite(after)):
+        fit = block_drift(times[1:][at_rescaling], after, blocks)
+        row.drift_at_rescaling_per_dof, row.drift_at_rescaling_standard_error = fit.per_dof(dof)
+
+
+def _rescaling_step_note(rows: Sequence[LongRow]) -> str:
+    """Say the drift at the rescaling steps of the rows :func:`_rescaling_step_drift` measured."""
+    return "".join(
+        f" {row.label}: at its rescaling steps alone ({row.rescaling_samples} energy rows) drift "
+        f"{row.drift_at_rescaling_per_dof:+.2e} ± {row.drift_at_rescaling_standard_error:.1e} kJ/mol/ns/DOF."
+        for row in rows
+        if row.drift_at_rescaling_per_dof == row.drift_at_rescaling_per_dof
+    )
 
 
 def _speed(row: LongRow, calls: list[dict], timestep_ps: float) -> None:
@@ -513,7 +548,7 @@ def _one_system(name: str, args: argparse.Namespace, output: Path) -> tuple[dict
         for n, base in (("energy4", "alpha4=0"), ("energy", "rattle"))
         if windows_against(rows, n, base)
     }
-    note += _interval_note(args.integrators, args.energy_interval)
+    note += _interval_note(args.integrators, args.energy_interval) + _rescaling_step_note(rows)
     note += "".join(
         f" {row.label}: |P - P_carried| = {row.carried_momentum_error:.2g} amu nm/ps after "
         f"{row.simulated_ps:g} ps (the momentum its rescaling carries against the state's)."
