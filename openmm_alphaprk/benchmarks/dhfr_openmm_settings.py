@@ -178,7 +178,7 @@ def main(argv: list[str] | None = None) -> int:
         ns_day = args.timestep * 1e-6 * 86400.0 / (ms * 1e-3)
         evaluations, syncs = per_step[name]
         print(
-            f"{name:<34} {ms:>8.3f} {ns_day:>8.0f} {ms / langevin:>11.2f} {ms / verlet:>9.2f} "
+            f"{name:<34} {ms:>8.3f} {ns_day:>8.3g} {ms / langevin:>11.2f} {ms / verlet:>9.2f} "
             f"{evaluations:>10.2f} {syncs:>10.2f}"
         )
         result.append(

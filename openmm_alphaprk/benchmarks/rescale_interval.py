@@ -158,6 +158,7 @@ def main() -> int:
         action="store_true",
         help="add single-thread CPU times per step to the JSON in --out (which must exist)",
     )
+    parser.add_argument("--note", help="a sentence kept in the JSON (e.g. what else ran on the machine)")
     parser.add_argument("--out", required=True)
     args = parser.parse_args()
     if args.cpu_time_only:
@@ -167,6 +168,10 @@ def main() -> int:
             box_name: single_thread_cpu_times(box_name, args.intervals, args.rounds, args.steps)
             for box_name in args.boxes
         }
+        result["rounds_single_thread_cpu_time"] = args.rounds
+        result["steps_per_round_single_thread_cpu_time"] = args.steps
+        if args.note:
+            result["note"] = args.note
         for box_name, rows in result["single_thread_cpu_time"].items():
             print(box_name, json.dumps(rows), flush=True)
         with open(args.out, "w") as handle:
@@ -183,6 +188,8 @@ def main() -> int:
         "step_time": {},
         "energy": {},
     }
+    if args.note:
+        result["note"] = args.note
     for box_name in [] if args.skip_cost else args.boxes:
         result["step_time"][box_name] = step_times(
             box_name, args.intervals, args.platform, args.rounds, args.steps

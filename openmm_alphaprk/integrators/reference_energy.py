@@ -7,14 +7,15 @@ The integrators that hold the total energy at a reference value — α-RATTLE's 
 E_ref is the total energy of the state at the first step, after
 :meth:`_ReferenceEnergy.reset_reference_energy`, and after the user changed the state:
 the positions or velocities at the start of a step differ from those the previous step
-ended with (``xend``, ``vend``) *and* the total energy differs from the one it ended with
-(``end_energy``) by more than max(tolerance, 1e-6 |E|). The energy test is what tells a
-user's change from the common platform's reordering and re-wrapping of atoms every 250
-steps, which moves coordinates but not the energy. Each step program ends by storing
-``xend``, ``vend`` and ``end_energy``.
+ended with *and* the total energy differs from the one it ended with (``end_energy``) by
+more than max(tolerance, 1e-6 |E|). The energy test is what tells a user's change from the
+common platform's reordering and re-wrapping of atoms every 250 steps, which moves
+coordinates but not the energy. The energy mode's steps end by storing ``xend``, ``vend``
+and ``end_energy``; the rescaling's store their end in x0, v0 (every N-th step's energy
+only, with ``rescale_interval`` N > 1, whose call records its end once, after its last step).
 
-A state can only be set between calls of ``step()``, so the comparison with ``xend`` and
-``vend`` (a sum over degrees of freedom: a device synchronisation on CUDA, OpenCL and
+A state can only be set between calls of ``step()``, so the comparison with the last
+step's end (a sum over degrees of freedom: a device synchronisation on CUDA, OpenCL and
 HIP) runs at the first step of each call: ``step()`` sets ``state_check`` and ``driven``
 before the steps and clears ``driven`` after them. A copy of the program that no
 ``step()`` of this package drives (a plain ``CustomIntegrator`` deserialized from XML and

@@ -22,7 +22,15 @@ COST = {
     "DHFR 23,558": CUDA + "cost_dhfr_2fs.json",
 }
 OPENMM_DHFR = CUDA + "dhfr_openmm_settings_4fs.json"
+OPENMM_DHFR_SCRIPT = "python -m openmm_alphaprk.benchmarks.dhfr_openmm_settings"
+#: The same script on the CPU platform, with OpenMM's forces and with the package's smooth ones.
+OPENMM_DHFR_CPU = (
+    "long_runs/cpu_dhfr_openmm_settings_4fs.json",
+    "long_runs/cpu_dhfr_openmm_settings_4fs_smooth.json",
+)
 CPU = "long_runs/cpu_tip3p-2nm.json"
+#: ``bench long`` on villin at 4 fs with hydrogens of 3 amu, CPU platform.
+CPU_VILLIN = "long_runs/cpu_villin-h3_4fs.json"
 CPU_BEFORE = "long_runs/cpu_tip3p-2nm_energy4_before.json"
 #: Goals of the rescaling's cost on CUDA (mixed): step time against RATTLE's, by atoms.
 GOALS = {"21,384": 1.35, "72,279": 1.25}
@@ -32,9 +40,17 @@ def _drift(row: dict) -> str:
     drift, error = row["drift_per_dof"], row["drift_per_dof_standard_error"]
     if drift != drift:  # NaN: too few samples
         return "-"
-    if not row["drift_resolved"]:
-        return f"{sig(drift)} ± {sig(error)} (not resolved)"
-    return f"**{sig(drift)} ± {sig(error)}**"
+    text = (
+        f"**{sig(drift)} ± {sig(error)}**"
+        if row["drift_resolved"]
+        else f"{sig(drift)} ± {sig(error)} (not resolved)"
+    )
+    at_rescaling = row.get("drift_at_rescaling_per_dof", float("nan"))
+    if at_rescaling == at_rescaling:
+        text += (
+            f"; at its rescaling steps {sig(at_rescaling)} ± {sig(row['drift_at_rescaling_standard_error'])}"
+        )
+    return text
 
 
 def _speed(row: dict, rattle_ms: float | None) -> list[str]:
@@ -167,21 +183,25 @@ def cost_table() -> str:
     return table(wanted, columns, provenance_line([source for _, source in loaded.values()], run))
 
 
-def openmm_dhfr_table() -> str:
+def openmm_dhfr_table(
+    path: str = OPENMM_DHFR,
+    command: str = f"{OPENMM_DHFR_SCRIPT} --platform CUDA --precision mixed",
+) -> str:
     """OpenMM's DHFR benchmark system as OpenMM builds it, 4 fs: ns/day of each integrator."""
-    data, source = load(OPENMM_DHFR)
+    data, source = load(path)
+    rattle = next((row["ms_per_step"] for row in data["rows"] if row["integrator"] == "RATTLE"), None)
     table = [
         [
             row["integrator"],
             f"{row['ms_per_step']:.3f}",
-            f"{row['ns_per_day']:,.0f}",
+            sig(row["ns_per_day"]) if row["ns_per_day"] < 100 else f"{row['ns_per_day']:,.0f}",
             f"{row['ratio_to_langevin_middle']:.2f}",
             f"{row['ratio_to_verlet']:.2f}",
+            times(row["ms_per_step"] / rattle) if rattle else "-",
         ]
         for row in data["rows"]
     ]
-    header = ["integrator", "ms/step", "ns/day", "× LangevinMiddle", "× Verlet"]
-    command = "python -m openmm_alphaprk.benchmarks.dhfr_openmm_settings --platform CUDA --precision mixed"
+    header = ["integrator", "ms/step", "ns/day", "× LangevinMiddle", "× Verlet", "× RATTLE"]
     run = f"{data['header']}; `{command}`"
     return provenance_line([source], run) + "\n\n" + markdown_table(header, table)
 
@@ -195,6 +215,14 @@ def render() -> dict[Path, dict[str, str]]:
         "cuda cost": cost_table(),
         "openmm dhfr": openmm_dhfr_table(),
     }
+    if all((DOCS / "data" / path).is_file() for path in OPENMM_DHFR_CPU):
+        command = f"{OPENMM_DHFR_SCRIPT} --platform CPU --steps 50"
+        blocks["openmm dhfr cpu"] = "\n\n".join(
+            openmm_dhfr_table(path, command + (" --smooth" if "smooth" in path else ""))
+            for path in OPENMM_DHFR_CPU
+        )
+    if (DOCS / "data" / CPU_VILLIN).is_file():
+        blocks["cpu villin long"] = long_table(CPU_VILLIN)
     if (DOCS / "data" / CPU).is_file():
         blocks["cpu long"] = long_table(CPU)
         blocks["cpu energy mode"] = energy_mode_windows(CPU)
