@@ -108,6 +108,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--smooth", action="store_true", help="every row on the System made smooth")
     parser.add_argument("--check-context", action="store_true", help="call check_context on each first")
+    parser.add_argument("--cpu-threads", type=int, help="threads of the CPU platform (default: all cores)")
     parser.add_argument("--steps", type=int, default=500, help="steps per row per round (default 500)")
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--json")
@@ -119,6 +120,8 @@ def main(argv: list[str] | None = None) -> int:
     nve_system = _without_cm_remover(system)
     platform = mm.Platform.getPlatformByName(args.platform)
     properties = {"Precision": args.precision} if args.precision else {}
+    if args.cpu_threads:
+        properties["Threads"] = str(args.cpu_threads)
     rows = _integrators(args.integrators, args.timestep / 1000.0)
     contexts = {}
     for name, (integrator, as_benchmark) in rows.items():
@@ -162,11 +165,12 @@ def main(argv: list[str] | None = None) -> int:
         else "Ewald tolerance 5e-4"
     )
     checked = "check_context called" if args.check_context else "no call but OpenMM's"
+    threads = f" ({args.cpu_threads} thread{'s' if args.cpu_threads > 1 else ''})" if args.cpu_threads else ""
     header = (
         f"DHFR as OpenMM's benchmark builds it ({system.getNumParticles()} atoms, Amber99SB/TIP3P, "
         f"PME 0.9 nm, {forces}, HBonds, H {args.hydrogen_mass:g} amu), {args.timestep:g} fs, platform "
-        f"{args.platform}{precision}; the package's integrators NVE, {checked}; median of {args.rounds} "
-        f"interleaved rounds x {args.steps} steps, each between two getState(energy=True)"
+        f"{args.platform}{precision}{threads}; the package's integrators NVE, {checked}; median of "
+        f"{args.rounds} interleaved rounds x {args.steps} steps, each between two getState(energy=True)"
     )
     print(header)
     print(
