@@ -197,7 +197,7 @@ def openmm_dhfr_table(
             sig(row["ns_per_day"]) if row["ns_per_day"] < 100 else f"{row['ns_per_day']:,.0f}",
             f"{row['ratio_to_langevin_middle']:.2f}",
             f"{row['ratio_to_verlet']:.2f}",
-            times(row["ms_per_step"] / rattle) if rattle else "-",
+            f"{row['ms_per_step'] / rattle:.2f}" if rattle else "-",
         ]
         for row in data["rows"]
     ]
@@ -216,7 +216,7 @@ def render() -> dict[Path, dict[str, str]]:
         "openmm dhfr": openmm_dhfr_table(),
     }
     if all((DOCS / "data" / path).is_file() for path in OPENMM_DHFR_CPU):
-        command = f"{OPENMM_DHFR_SCRIPT} --platform CPU --steps 50"
+        command = f"{OPENMM_DHFR_SCRIPT} --platform CPU --steps 30 --rounds 5"
         blocks["openmm dhfr cpu"] = "\n\n".join(
             openmm_dhfr_table(path, command + (" --smooth" if "smooth" in path else ""))
             for path in OPENMM_DHFR_CPU
