@@ -344,6 +344,8 @@ def sync_cost_table() -> str:
 
 #: ``alphaprk bench cost`` of the rescaling that sums K alone per step, against RATTLE in each run.
 RESCALE_COST = (
+    "platforms/bench_cost_interval_cpu_tip3p-2nm_rattle_program.json",
+    "platforms/bench_cost_interval_cpu_tip3p-3nm_rattle_program.json",
     "platforms/bench_cost_interval_opencl_tip3p-2nm_rattle_program.json",
     "platforms/bench_cost_cpu_tip3p-2nm_7rounds.json",
     "platforms/bench_cost_cpu_tip3p-3nm_7rounds.json",
