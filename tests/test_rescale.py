@@ -1,5 +1,7 @@
 """RATTLE + velocity rescaling: H held at E_ref, P, L and the velocity constraints kept, clear refusals."""
 
+import re
+
 import numpy as np
 import openmm as mm
 import openmm.unit as unit
@@ -622,6 +624,39 @@ def test_a_step_between_rescalings_is_the_unrescaled_integrators_step(options, u
         assert _per_dof_variables(integrator) == _per_dof_variables(base) == {"x0", "v0"}
         # the program before this one: F(x0) copied and the end state copied at every step
         assert ("per DOF", "fstart", "f") not in between
+
+
+@pytest.mark.parametrize(
+    "options",
+    [{}, {"rescale_interval": 10}, {"order": 4}, {"order": 4, "rescale_interval": 10}, {"splitting": "me2"}]
+    + [{"splitting": "me2", "rescale_interval": 10}, {"alpha": 0.1}],
+    ids=["rattle", "rattle@10", "rattle4", "rattle4@10", "split-me", "split-me@10", "alpha"],
+)
+def test_no_force_is_read_after_an_energy_read_before_the_positions_change(options):
+    """In program text, after every read of ``energy`` the positions change before ``f`` is read.
+
+    OpenMM evaluates the energy of such a read alone when no force read follows it before the
+    positions change, and marks the forces valid; on CUDA and NVIDIA's OpenCL (not on pocl or
+    Reference, where the tests run) the forces read after it were wrong. Text order covers
+    every path here: the programs have no loops but α's midpoint loop, which reads no energy.
+    """
+    lines = [
+        line.split(maxsplit=1)[1]
+        for line in RattleRescaleIntegrator(H, **options).program_listing().splitlines()
+    ]
+    lines = [
+        line for line in lines if not line.startswith(("global ", "per-dof ", "step size", "constraint"))
+    ]
+    reads_energy = [i for i, line in enumerate(lines) if re.search(r"\benergy\b", line.split(" = ", 1)[-1])]
+    assert reads_energy
+    for i in reads_energy:
+        after = (
+            line
+            for line in lines[i + 1 :]
+            if line == "constrain positions" or line.startswith("x = ") or re.search(r"\bf\b", line)
+        )
+        first = next(after, "")  # a step that assigns x reads its expression's f before it moves
+        assert first == "constrain positions" or not re.search(r"\bf\b", first), (lines[i], first)
 
 
 def test_a_rescaling_step_without_a_factor_returns_to_its_start_with_an_interval(spinning_cluster):

@@ -96,6 +96,7 @@ class _ReferenceEnergy:
         on_moved: Callable[[], None] | None = None,
         previous: tuple[str, str] = ("xend", "vend"),
         carried_tolerance: str | None = None,
+        after_energy: Callable[[], None] | None = None,
     ) -> None:
         """Take E_ref at the first step, after a reset, and after the user changed the state.
 
@@ -110,6 +111,7 @@ class _ReferenceEnergy:
         velocities; :meth:`_add_end_state_record` writes them). ``carried_tolerance``: an
         expression (kJ/mol) added to the energy test's tolerance, for a program whose last
         step may have ended without reading its energy (``end_energy`` then carried).
+        ``after_energy`` adds computations right after the energy read.
 
         The force at x0 must have been read (copied) before this block: with the
         energy read here as a step's first evaluation and ``f`` read after it, the
@@ -126,6 +128,8 @@ class _ReferenceEnergy:
             on_moved()
         self._add_sum("kinetic_energy", "0.5*m*v*v")
         self.addComputeGlobal("start_energy", "energy + kinetic_energy")
+        if after_energy is not None:
+            after_energy()
         self.addComputeGlobal(
             "retake",
             "max(1 - reference_set, step(abs(start_energy - end_energy) - same));"

@@ -368,6 +368,7 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
             previous=("x0", "v0"),
             on_retake=_INTERVAL_RESTART,
             carried_tolerance=_EXCURSION_TOLERANCE,
+            after_energy=self._add_forces_invalidation,
         )
         self.addComputeGlobal("rescale_count", "rescale_count + 1")
         self.beginIfBlock("rescale_count < rescale_interval - 0.5")  # RATTLE's program
@@ -420,6 +421,19 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         evaluates the forces and the energy together, here only.
         """
         self._add_rigid_body_measurement()
+        self.addComputePerDof("x", "x")
+
+    def _add_forces_invalidation(self) -> None:
+        """After the reference check's energy read (``rescale_interval`` > 1): ``x = x`` once more.
+
+        The blocks after it read ``f`` at the step's start, in a step that moves the
+        positions (``x = x0 + dt*v0 + ...``), so OpenMM's analysis does not evaluate the
+        forces together with that energy read: the read evaluates the energy alone and marks
+        the forces valid. On CUDA and NVIDIA's OpenCL the forces read after such an
+        evaluation were wrong (:meth:`~.reference_energy._ReferenceEnergy._add_reference_check`).
+        The assignment ends their validity again, so the step's force read evaluates them:
+        one force evaluation more, on the steps that open the reference check's block only.
+        """
         self.addComputePerDof("x", "x")
 
     def _add_call_end_record(self) -> None:
