@@ -412,27 +412,29 @@ class RattleRescaleIntegrator(_ReferenceEnergy, _StepProgram):
         self.addComputeGlobal("midpoint_failures", "midpoint_failures + midpoint_failed")
 
     def _add_moved_start_invalidating(self) -> None:
-        """Where the state was set (``rescale_interval`` > 1): P and L measured, then ``x = x``.
+        """Where the state was set (``rescale_interval`` > 1): P and L measured, then the forces invalidated.
 
-        The assignment changes nothing (on the common platform it comes before the step's
-        constraint steps in program text, so it is stored as a zero displacement) but ends
-        the forces' validity for OpenMM's analysis: the last force read of a step between
-        rescalings then computes no energy for the reference check's energy read, which
-        evaluates the forces and the energy together, here only.
+        Before the reference check's energy read: the last force read of a step between
+        rescalings then computes no energy for that read, which evaluates the energy here
+        only (:meth:`_add_forces_invalidation`).
         """
         self._add_rigid_body_measurement()
-        self.addComputePerDof("x", "x")
+        self._add_forces_invalidation()
 
     def _add_forces_invalidation(self) -> None:
-        """After the reference check's energy read (``rescale_interval`` > 1): ``x = x`` once more.
+        """Add ``x = x``: it ends the forces' validity for OpenMM's analysis of the program.
 
-        The blocks after it read ``f`` at the step's start, in a step that moves the
-        positions (``x = x0 + dt*v0 + ...``), so OpenMM's analysis does not evaluate the
-        forces together with that energy read: the read evaluates the energy alone and marks
-        the forces valid. On CUDA and NVIDIA's OpenCL the forces read after such an
-        evaluation were wrong (:meth:`~.reference_energy._ReferenceEnergy._add_reference_check`).
-        The assignment ends their validity again, so the step's force read evaluates them:
-        one force evaluation more, on the steps that open the reference check's block only.
+        The assignment changes nothing (on the common platform it comes before the step's
+        constraint steps in program text, so it is stored as a zero displacement). With
+        ``rescale_interval`` > 1 it stands on both sides of the reference check's energy read.
+        Before it, so that no step between rescalings evaluates the energy with its forces.
+        After it, because the blocks that follow read ``f`` in a step that moves the
+        positions (``x = x0 + dt*v0 + ...``), so OpenMM's analysis evaluates that energy
+        alone and marks the forces valid; on CUDA and NVIDIA's OpenCL the forces read after
+        such an evaluation were wrong
+        (:meth:`~.reference_energy._ReferenceEnergy._add_reference_check`). Invalidated
+        again, they are evaluated at the step's force read: one force evaluation more, on
+        the steps that open the reference check's block only.
         """
         self.addComputePerDof("x", "x")
 
