@@ -33,7 +33,7 @@ from openmm_alphaprk import (
     RattleIntegrator,
     make_smooth,
 )
-from openmm_alphaprk.integrators.energy_mode import EnergyHoldWarning
+from openmm_alphaprk.errors import EnergyHoldWarning
 from openmm_alphaprk.observables import energy_residuals, rms
 
 CPU = mm.Platform.getPlatformByName("CPU")

@@ -411,10 +411,12 @@ def test_the_class_diagram_has_at_most_three_levels():
     The private bases: ``_StepProgram`` (every program) and ``_AlphaRattleBase`` (what the
     fixed α and the energy mode share; the energy mode is not an ``AlphaRattleIntegrator``).
 
-    Beside them only the E_ref trait of the integrators that hold the energy (not an
-    integrator, and not a level: it derives from object).
+    Beside them only the layers of the integrators that hold the energy: the E_ref trait
+    (it derives from object) and the energy mode's controller over it; neither is an
+    integrator or a level.
     """
     from openmm_alphaprk import AlphaRattleEnergyIntegrator, RattleRescaleIntegrator
+    from openmm_alphaprk.integrators.energy_controller import _EnergyController
     from openmm_alphaprk.integrators.reference_energy import _ReferenceEnergy
 
     integrators = (
@@ -427,5 +429,5 @@ def test_the_class_diagram_has_at_most_three_levels():
         ours = [c for c in cls.__mro__ if c.__module__.startswith("openmm_alphaprk")]
         levels = [c for c in ours if issubclass(c, mm.CustomIntegrator)]
         assert len(levels) <= 3, levels
-        assert set(ours) - set(levels) <= {_ReferenceEnergy}, ours
+        assert set(ours) - set(levels) <= {_ReferenceEnergy, _EnergyController}, ours
         assert _ReferenceEnergy.__bases__ == (object,)

@@ -10,7 +10,7 @@ import openmm.unit as unit
 import pytest
 
 from openmm_alphaprk import AlphaRattleEnergyIntegrator, AlphaRattleIntegrator, NonSmoothForcesWarning
-from openmm_alphaprk.integrators.energy_mode import DIAGNOSIS_STEPS
+from openmm_alphaprk.integrators.energy_controller import DIAGNOSIS_STEPS
 
 
 def _rough(water_box) -> mm.System:

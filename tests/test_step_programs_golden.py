@@ -15,14 +15,15 @@ from pathlib import Path
 
 import openmm as mm
 
-from openmm_alphaprk import AlphaRattleIntegrator, RattleRescaleIntegrator
+from openmm_alphaprk import AlphaRattleEnergyIntegrator, AlphaRattleIntegrator, RattleRescaleIntegrator
 from openmm_alphaprk.runs.integrator_names import example_names, make_integrator
 
 GOLDEN = Path(__file__).parent / "golden" / "step_programs.txt"
 
 #: Every form the registry names (``example_names``: each family, order, set and layer, every
-#: named splitting), made by name at 2 fs, and the options no name reaches: α on every stage, and
-#: the rescaling after a fixed α (a combination of the layer and the α base that no name offers).
+#: named splitting), made by name at 2 fs, and the options no name reaches: α on every stage, the
+#: rescaling after a fixed α and the energy mode over a splitting (combinations of a layer and a
+#: base that no name offers).
 INTEGRATORS = {
     **{name: partial(make_integrator, name, 0.002) for name in example_names() if name != "verlet"},
     "AlphaRattleIntegrator(0.002, alpha=0.01, order=4, alpha_stages='all')": lambda: AlphaRattleIntegrator(
@@ -31,6 +32,9 @@ INTEGRATORS = {
     "RattleRescaleIntegrator(0.002, alpha=0.1)": lambda: RattleRescaleIntegrator(0.002, alpha=0.1),
     "RattleRescaleIntegrator(0.002, alpha=0.01, order=4)": lambda: RattleRescaleIntegrator(
         0.002, alpha=0.01, order=4
+    ),
+    "AlphaRattleEnergyIntegrator(0.002, splitting='me2')": lambda: AlphaRattleEnergyIntegrator(
+        0.002, splitting="me2"
     ),
 }
 

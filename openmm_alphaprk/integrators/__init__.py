@@ -33,8 +33,9 @@ Modules:
   :mod:`~.restore`: :func:`restore_integrator`.
 """
 
+from ..errors import EnergyHoldWarning
 from .alpha_rattle import AlphaRattleIntegrator
-from .energy_mode import AlphaRattleEnergyIntegrator, EnergyHoldWarning
+from .energy_mode import AlphaRattleEnergyIntegrator
 from .energy_settings import ControllerSettings
 from .pieces import (
     IncompatibleSystemError,

@@ -120,6 +120,11 @@ def last_forces(alpha: str) -> str:
     return f"{alpha}*fmid + (0.5-{alpha})*f"
 
 
+def _coefficient(value: float | str) -> str:
+    """Write a kick coefficient into an expression: a number as Python writes it, or ``(expression)``."""
+    return repr(value) if isinstance(value, float) else f"({value})"
+
+
 def _substep_h(composition: Composition, stage: int) -> str:
     """Expression of stage ``stage``'s step size, c_stage·h."""
     return f"({composition.coefficients[stage - 1]!r}*dt)"
@@ -473,15 +478,16 @@ class _StepProgram(mm.CustomIntegrator):
         followed by its constraint step, so the force read after it sees the solved
         positions on every platform (rule 1), and projects along the positions of the
         previous constraint step, the sub-step's start (rule 2). Leaves x, v at the end;
-        x0, v0 at the last sub-step's start.
+        x0, v0 at the last sub-step's start. A kick coefficient may be an expression of the
+        program's globals (the energy mode's splitting base: of ``alpha``).
         """
         for i, (c, before, after) in enumerate(substeps, start=1):
             h = "dt" if c == 1.0 else f"({c!r}*dt)"
             if i > 1:
                 self.addComputePerDof("x0", "x")
                 self.addComputePerDof("v0", "v")
-            self._add_position_solve(f"{before!r}*{first_force if i == 1 else 'f'}", h)
-            self._add_velocity_update(f"{after!r}*f", h)
+            self._add_position_solve(f"{_coefficient(before)}*{first_force if i == 1 else 'f'}", h)
+            self._add_velocity_update(f"{_coefficient(after)}*f", h)
 
     def _add_leading_substeps(self, composition: Composition) -> None:
         """Take the RATTLE stages before the first α stage from the step's start (F(x0) in ``fstart``)."""
