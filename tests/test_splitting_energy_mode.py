@@ -169,3 +169,38 @@ def test_it_is_restored_from_xml_with_its_splitting():
 def test_a_base_it_cannot_take_is_refused(options, message):
     with pytest.raises(InputError, match=message):
         AlphaRattleEnergyIntegrator(H, **options)
+
+
+def test_the_measurement_script_runs_the_packages_energy_mode(tmp_path):
+    """tools/scripts/splitting_energy_mode.py (docs/splitting.md's numbers) on the water cluster, 3 steps."""
+    import json
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    script = Path(__file__).resolve().parent.parent / "tools" / "scripts" / "splitting_energy_mode.py"
+    out = tmp_path / "out.json"
+    arguments = [
+        "--system",
+        "water-cluster",
+        "--steps",
+        "3",
+        "--horizons",
+        "2",
+        "--rows",
+        "split-me",
+        "rattle@2",
+    ]
+    subprocess.run(
+        [sys.executable, str(script), *arguments, "--energy-modes", "1e-6:4", "--json", str(out)],
+        check=True,
+        capture_output=True,
+        timeout=300,
+    )
+    document = json.loads(out.read_text(encoding="utf-8"))
+    rows = {row["row"]: row for row in document["rows"]}
+    assert set(rows) == {"split-energy tol 1e-06, <= 4 trials", "split-me", "rattle at h/2"}
+    energy = rows["split-energy tol 1e-06, <= 4 trials"]
+    assert energy["evaluations"] >= 2 and energy["max_trials"] == 4 and len(energy["position_rms"]) == 1
+    assert document["energy_mode"]["rows"]["split-energy tol 1e-06, <= 4 trials"]["steps"] == 3
+    assert rows["rattle at h/2"]["evaluations"] == 2
