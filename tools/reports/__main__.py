@@ -32,7 +32,7 @@ from tools.reports import (
     physics,
     splitting,
     step_programs,
-    validation_tables,
+    validation,
 )
 from tools.reports.markdown import stale_blocks, update_page
 from tools.reports.sources import DATA, DOCS, ROOT
@@ -40,7 +40,7 @@ from tools.reports.sources import DATA, DOCS, ROOT
 
 def _validation() -> dict[Path, dict[str, str]]:
     data = json.loads((DATA / "validation" / "validation.json").read_text(encoding="utf-8"))
-    return {DOCS / "validation.md": validation_tables.render_tables(data)}
+    return {DOCS / "validation.md": validation.render_tables(data)}
 
 
 #: Every generator: its name and what it renders, by page and block name.
