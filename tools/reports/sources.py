@@ -63,16 +63,17 @@ def load(path: str) -> tuple[dict, Source]:
     return json.loads((DATA / path).read_text(encoding="utf-8")), source(path)
 
 
-def provenance_line(sources: list[Source], run: str, link: str = "data/") -> str:
-    """One line a person can read: the run, where and when it ran, and a link to each data file.
+def link(path: str, data: str = "data/") -> str:
+    """Return a Markdown link to the data file ``path``; ``data`` is the path from the page to docs/data/."""
+    return f"[{path.split('/')[-1]}]({data}{path})"
 
-    ``link`` is the path from the page to docs/data/ (``data/`` from docs/, ``docs/data/`` from
-    the README).
-    """
+
+def provenance_line(sources: list[Source], run: str, data: str = "data/") -> str:
+    """One line a person can read: the run, where and when it ran, and a link to each data file."""
     days = sorted({s.date for s in sources})
     machines = sorted({s.machine for s in sources})
     when = days[0] if len(days) == 1 else f"{days[0]} to {days[-1]}"
-    files = ", ".join(f"[{s.path.split('/')[-1]}]({link}{s.path})" for s in sources)
+    files = ", ".join(link(s.path, data) for s in sources)
     return f"{run}; {' and '.join(machines)}, {when}. Data: {files}."
 
 
