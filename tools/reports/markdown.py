@@ -26,12 +26,16 @@ def block(name: str, content: str) -> str:
     return f"<!-- generated: {name} -->\n{body}\n<!-- end generated: {name} -->"
 
 
-def markdown_table(header: list[str], rows: list[list[str]], aligns: Sequence[str] = ()) -> str:
-    """Render a Markdown table: the header, the alignment line (``---`` by default), one line per row."""
+def markdown_table(header: Sequence[str] | str, rows: list[list[str]], aligns: Sequence[str] = ()) -> str:
+    """Render a Markdown table: the header, the alignment line (``---`` by default), one line per row.
+
+    ``header`` is the column titles, or the header line as the page writes it (``"row | ps | RMS"``).
+    """
 
     def line(cells: Sequence[str]) -> str:
         return "| " + " | ".join(cells) + " |"
 
+    header = header.split(" | ") if isinstance(header, str) else header
     aligns = aligns or ["---"] * len(header)
     return "\n".join([line(header), line(aligns), *(line(r) for r in rows)])
 

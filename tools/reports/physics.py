@@ -21,6 +21,8 @@ CLUSTER = "physics/water-cluster.json"
 FIGURES = DOCS / "figures"
 #: The rows whose velocities are scaled, in the page's order.
 RESCALED = ("rattle+rescale", "rattle+rescale@10", "rattle4+rescale")
+#: The temperatures of a group, in the equipartition table's order.
+TEMPERATURES = ("total", "translational", "rotational")
 #: How far (combined standard errors) a rescaled row may sit from the reference (the issue's goal).
 GOAL_ERRORS = 2.0
 #: A published TIP3P self-diffusion coefficient beside ours (1e-5 cm²/s).
@@ -31,6 +33,7 @@ PUBLISHED_D = (
 
 
 def _pm(value: float | None, error: float | None, digits: int = 3) -> str:
+    """Write ``value ± error`` ("-" for no value; no error: the value alone)."""
     if value is None or value != value:
         return "-"
     if error is None or error != error:
@@ -39,6 +42,7 @@ def _pm(value: float | None, error: float | None, digits: int = 3) -> str:
 
 
 def _provenance(source: Source, data: dict) -> str:
+    """Return the provenance line of a ``bench physics`` report: its system, platform and each mode's runs."""
     arguments = data["arguments"]
     parts = []
     if "segments" in arguments:
@@ -76,12 +80,12 @@ def _segment_gap(first: dict, second: dict) -> np.ndarray:
     return np.array(first["segment_temperatures_K"]) - np.array(second["segment_temperatures_K"])
 
 
-def _gap(group: dict, a: str, b: str) -> tuple[float, float]:
-    """Mean and standard error over segments of T_a − T_b (K)."""
-    first, second = group[a].get("segment_temperatures_K"), group[b].get("segment_temperatures_K")
-    if not first or not second or len(first) < 2:
-        return group[a]["temperature_K"] - group[b]["temperature_K"], math.nan
-    return _mean_error(_segment_gap(group[a], group[b]))
+def _gap(group: dict) -> tuple[float, float]:
+    """Mean and standard error over segments of T_translational − T_rotational (K)."""
+    first, second = group["translational"], group["rotational"]
+    if len(first.get("segment_temperatures_K") or ()) < 2 or not second.get("segment_temperatures_K"):
+        return first["temperature_K"] - second["temperature_K"], math.nan
+    return _mean_error(_segment_gap(first, second))
 
 
 def equipartition_table(data: dict) -> str:
@@ -91,36 +95,31 @@ def equipartition_table(data: dict) -> str:
     rows = []
     for label, setting in {reference: eq["reference"], **eq["settings"]}.items():
         is_reference = label == reference
-        system = setting["groups"]["system"]
-        gap = _gap(system, "translational", "rotational")
-        halves = _halves(setting["groups"])
+        groups = setting["groups"]
+        system = groups["system"]
         against = setting.get("against_reference", {}).get("system", {})
         z = [against.get(p, {}).get("in_errors") for p in ("translational", "rotational")]
         step = label.partition(" h=")[2]
         rattle = eq["settings"].get(f"rattle h={step}", {}).get("groups", {}).get("system")
-        versus_rattle = "-" if rattle is None or rattle is system else _pm(*_paired_gap(system, rattle), 2)
+        versus_rattle = "-"
+        if rattle is not None and rattle is not system:  # (T_tr − T_rot) − RATTLE's, paired by start
+            gaps = [_segment_gap(g["translational"], g["rotational"]) for g in (system, rattle)]
+            versus_rattle = _pm(*_mean_error(gaps[0] - gaps[1]), 2)
         rows.append(
-            [
-                _label(label) + (" (reference)" if is_reference else ""),
-                _pm(system["total"]["temperature_K"], system["total"]["standard_error_K"], 4),
-                _pm(system["translational"]["temperature_K"], system["translational"]["standard_error_K"], 4),
-                _pm(system["rotational"]["temperature_K"], system["rotational"]["standard_error_K"], 4),
-                _pm(*gap, 2),
-                _pm(*halves, 2),
+            [_label(label) + (" (reference)" if is_reference else "")]
+            + [_pm(system[p]["temperature_K"], system[p]["standard_error_K"], 4) for p in TEMPERATURES]
+            + [
+                _pm(*_gap(system), 2),
+                _pm(*_mean_error(_segment_gap(groups["half 1"]["total"], groups["half 2"]["total"])), 2),
                 versus_rattle,
                 " / ".join("-" if v is None or is_reference else f"{v:+.1f}" for v in z),
             ]
         )
-    header = [
-        "setting",
-        "T total (K)",
-        "T translation (K)",
-        "T rotation (K)",
-        "T_tr − T_rot (K)",
-        "T half 1 − half 2 (K)",
-        "gap − RATTLE's at the step (K, by start)",
-        "translation / rotation vs reference (errors)",
-    ]
+    header = (
+        "setting | T total (K) | T translation (K) | T rotation (K) | T_tr − T_rot (K) "
+        "| T half 1 − half 2 (K) | gap − RATTLE's at the step (K, by start) "
+        "| translation / rotation vs reference (errors)"
+    )
     return markdown_table(header, rows) + (
         f"\n\nReference: {_label(reference)}. Errors: standard error of the mean over the independent "
         "segments (one temperature per segment: 2⟨K⟩/(N k_B) of physical_validation's partition of "
@@ -132,17 +131,8 @@ def equipartition_table(data: dict) -> str:
     )
 
 
-def _paired_gap(system: dict, rattle: dict) -> tuple[float, float]:
-    """Mean and standard error over starts of (T_tr − T_rot) minus RATTLE's from the same start (K)."""
-    gaps = [_segment_gap(group["translational"], group["rotational"]) for group in (system, rattle)]
-    return _mean_error(gaps[0] - gaps[1])
-
-
-def _halves(groups: dict) -> tuple[float, float]:
-    return _mean_error(_segment_gap(groups["half 1"]["total"], groups["half 2"]["total"]))
-
-
 def _flag(flag: dict | str) -> str:
+    """Say which partition of a setting ``alphaprk validate`` flagged, and by how much."""
     if isinstance(flag, str):
         return flag
     return (
@@ -194,8 +184,7 @@ def transport_table(data: dict) -> str:
                     text += f" ({(mean - reference['mean'][key]) / combined:+.1f})"
             row.append(text)
         rows.append(row)
-    header = ["setting"] + [title for _, title, _ in quantities]
-    return markdown_table(header, rows) + (
+    return markdown_table(["setting"] + [title for _, title, _ in quantities], rows) + (
         "\n\nMean ± standard error over the segments; in brackets the distance from RATTLE at 0.5 fs in "
         "combined standard errors. D: water oxygens' MSD (MDAnalysis `EinsteinMSD`) fitted over 10–60 % of "
         f"the longest lag, plus the Yeh–Hummer correction with TIP3P's viscosity "
@@ -220,8 +209,7 @@ def rescaling_table(data: dict) -> str:
             cells.append(_pm(*_mean_error(values), 2) if len(values) > 1 else _pm(values[0], None, 2))
         integrator, _, step = name.rpartition("@")
         rows.append([f"`{integrator}` at {step[:-2]} fs"] + cells)
-    header = ["setting", "mean s − 1", "RMS s − 1", "energy added (kJ/mol/ns)"]
-    return markdown_table(header, rows) + (
+    return markdown_table("setting | mean s − 1 | RMS s − 1 | energy added (kJ/mol/ns)", rows) + (
         "\n\nPer segment over all its rescalings (`summary.json`'s `rescaling`), mean ± standard error "
         "over the segments. Energy added = −Σ(H − E_ref before each scaling) per ns of simulated time."
     )
@@ -285,7 +273,7 @@ def temperature_table(data: dict) -> str:
             else:
                 cells.append("-")
         rows.append(cells)
-    header = ["setting", "ΔT (K)", "ΔT − limit (errors)", "ΔU (kJ/mol)", "ΔU − limit (errors)"]
+    header = "setting | ΔT (K) | ΔT − limit (errors) | ΔU (kJ/mol) | ΔU − limit (errors)"
     limit_text = "-"
     if limit:
         t, u = limit["temperature_difference_K"], limit["potential_difference_kJ_per_mol"]
@@ -299,10 +287,12 @@ def temperature_table(data: dict) -> str:
 
 
 def _step(folder: str) -> float:
+    """Return the step (fs) of a run folder ``NAME@2fs``."""
     return float(folder.rpartition("@")[2][:-2])
 
 
 def _signed(value: float, error: float) -> str:
+    """Write ``+value ± error``."""
     return f"{value:+.2g} ± {sig(error)}"
 
 
@@ -317,17 +307,19 @@ def stress_table(data: dict, gaps: tuple[tuple[str, str, str, str], ...]) -> str
             trend = "-" if fit is None else _pm(100 * fit[0][0], 100 * math.sqrt(fit[1][0, 0]), 2)
             integrator, _, step = name.rpartition("@")
             length = "" if run.get("complete", True) else f" (stopped at {times[-1]:.0f} ps)"
+            gap = f"{group_a} {a} − {group_b} {b}"
+            spread = f"{np.std(values, ddof=1):.1f}"
             rows.append(
                 [
                     f"`{integrator}` at {step[:-2]} fs{length}",
-                    f"{group_a} {a} − {group_b} {b}",
+                    gap,
                     f"{values[0]:+.1f}",
                     f"{values[-1]:+.1f}",
                     trend,
-                    f"{np.std(values, ddof=1):.1f}",
+                    spread,
                 ]
             )
-    header = ["row", "gap", "first window (K)", "last window (K)", "trend (K per 100 ps)", "spread (K)"]
+    header = "row | gap | first window (K) | last window (K) | trend (K per 100 ps) | spread (K)"
     windows = next(iter(data["stress"].values()))["windows"]
     energy = [
         [
@@ -340,7 +332,7 @@ def stress_table(data: dict, gaps: tuple[tuple[str, str, str, str], ...]) -> str
     ]
     energy_text = (
         "\n\nOver each whole run:\n\n"
-        + markdown_table(["row", "drift of H (kJ/mol/ns)", "energy the scaling added (kJ/mol/ns)"], energy)
+        + markdown_table("row | drift of H (kJ/mol/ns) | energy the scaling added (kJ/mol/ns)", energy)
         if energy
         else ""
     )
@@ -391,7 +383,7 @@ def figures(data: dict, stem: str) -> None:
         for name, run in data["stress"].items():
             times = [w["end_ps"] for w in run["windows"]]
             ax.plot(times, [_window_gap(w, *gap) for w in run["windows"]], marker="o", label=name)
-        ax.set(xlabel="end of window (ps)", ylabel=f"T {gap[0]} {gap[1]} − T {gap[2]} {gap[3]} (K)")
+        ax.set(xlabel="end of window (ps)", ylabel="T {} {} − T {} {} (K)".format(*gap))
         ax.axhline(0, color="grey", lw=0.5)
         ax.legend(fontsize=7)
         fig.tight_layout()
@@ -401,35 +393,27 @@ def figures(data: dict, stem: str) -> None:
 
 def render(write_figures: bool = False) -> dict[Path, dict[str, str]]:
     """Every generated block of docs/physics.md."""
-    blocks = {}
-    water, source = load(WATER)
-    blocks["water provenance"] = _provenance(source, water)
-    blocks["equipartition"] = equipartition_table(water) + "\n\n" + goal_verdict(water)
-    blocks["rescaling"] = rescaling_table(water)
-    blocks["temperature"] = temperature_table(water)
-    blocks["transport"] = transport_table(water)
-    if "order" in water:
-        blocks["order"] = order_table(water)
-    if (DOCS / "data" / CLUSTER).is_file():
-        cluster, cluster_source = load(CLUSTER)
-        blocks["cluster provenance"] = _provenance(cluster_source, cluster).replace(
-            "CPU platform", "Reference platform"
-        )
-        blocks["cluster order"] = order_table(cluster)
-    if "stress" in water:
-        blocks["water stress"] = stress_table(water, (("system", "translational", "system", "rotational"),))
+    (water, water_source), (cluster, cluster_source) = load(WATER), load(CLUSTER)
+    solute, solute_source = load(SOLUTE)
     if write_figures:
         figures(water, "tip3p-2nm")
-    if (DOCS / "data" / SOLUTE).is_file():
-        solute, solute_source = load(SOLUTE)
-        blocks["solute provenance"] = _provenance(solute_source, solute)
-        blocks["solute stress"] = stress_table(
-            solute,
-            (
-                ("system", "translational", "system", "rotational and internal"),
-                ("solute", "total", "solvent", "total"),
-            ),
-        )
-        if write_figures:
-            figures(solute, "villin-h3")
+        figures(solute, "villin-h3")
+    cluster_provenance = _provenance(cluster_source, cluster).replace("CPU platform", "Reference platform")
+    solute_gaps = (
+        ("system", "translational", "system", "rotational and internal"),
+        ("solute", "total", "solvent", "total"),
+    )
+    blocks = {
+        "water provenance": _provenance(water_source, water),
+        "equipartition": equipartition_table(water) + "\n\n" + goal_verdict(water),
+        "rescaling": rescaling_table(water),
+        "temperature": temperature_table(water),
+        "transport": transport_table(water),
+        "order": order_table(water),
+        "cluster provenance": cluster_provenance,
+        "cluster order": order_table(cluster),
+        "water stress": stress_table(water, (("system", "translational", "system", "rotational"),)),
+        "solute provenance": _provenance(solute_source, solute),
+        "solute stress": stress_table(solute, solute_gaps),
+    }
     return {PAGE: blocks}
