@@ -23,7 +23,6 @@ from pathlib import Path
 
 from tools.reports import (
     accuracy,
-    compositions,
     energy_program,
     guide,
     long_runs,
@@ -48,7 +47,6 @@ GENERATORS: dict[str, Callable[[], dict[Path, dict[str, str]]]] = {
     "guide": guide.render,
     "main job": main_job.pages,
     "accuracy": accuracy.render,
-    "compositions": compositions.render,
     "benchmarks": md_benchmark.render,
     "validation": _validation,
     "long runs": long_runs.render,
@@ -90,7 +88,6 @@ def main(argv: list[str] | None = None) -> int:
     step_programs.PAGE.write_text(step_programs.page_text(), encoding="utf-8")
     if args.figures:
         accuracy.figures()
-        compositions.figures()
         physics.render(write_figures=True)
     print("rewrote the generated blocks of every page")
     return 0
