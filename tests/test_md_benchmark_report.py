@@ -9,8 +9,8 @@ import pytest
 
 from openmm_alphaprk.benchmarks.md_sweep.analysis import compare_dynamics
 from openmm_alphaprk.benchmarks.md_sweep.tables import scan_table
-from tools.reports.markdown import page_tables, read_blocks, replace_generated
-from tools.reports.md_benchmark import JSON_OUT, PAGE, render_page, scan_markdown
+from tools.reports.markdown import page_tables, replace_generated
+from tools.reports.md_benchmark import JSON_OUT, PAGE, blocks, scan_markdown
 
 
 def _row(system, integrator, step, status="ok", max_abs=0.1, dof=1000.0):
@@ -100,7 +100,7 @@ def test_page_tables_are_the_ones_rendered_from_the_json():
     """docs/benchmarks.md's generated tables are what the report renders from its JSON."""
     report = json.loads(JSON_OUT.read_text(encoding="utf-8"))
     on_page = page_tables(PAGE)
-    rendered = read_blocks(render_page(PAGE.read_text(encoding="utf-8"), report))
+    rendered = blocks(report)
     assert set(on_page) == set(rendered) and len(on_page) == 9
     for name, table in rendered.items():
         assert on_page[name] == table, f"table {name!r} of docs/benchmarks.md is not the JSON's"
