@@ -8,15 +8,12 @@ Run from the repository's root::
 
 A generated block is the text between ``<!-- generated: NAME -->`` and ``<!-- end generated:
 NAME -->``; the prose around it is written by hand and cites it. Each page's blocks come from
-one generator of :data:`GENERATORS`; the experiments that write the data are elsewhere
-(``alphaprk bench``, ``openmm_alphaprk.benchmarks``, ``tools/scripts``), so this command
-only reads. ``tests/test_guide_reports.py`` runs the check.
+one generator of :data:`GENERATORS`; this command only reads the data.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -34,32 +31,26 @@ from tools.reports import (
     validation,
 )
 from tools.reports.markdown import stale_blocks, update_page
-from tools.reports.sources import DATA, DOCS, ROOT
+from tools.reports.sources import ROOT
 
-
-def _validation() -> dict[Path, dict[str, str]]:
-    data = json.loads((DATA / "validation" / "validation.json").read_text(encoding="utf-8"))
-    return {DOCS / "validation.md": validation.render_tables(data)}
-
-
-#: Every generator: its name and what it renders, by page and block name.
-GENERATORS: dict[str, Callable[[], dict[Path, dict[str, str]]]] = {
-    "guide": guide.render,
-    "main job": main_job.pages,
-    "accuracy": accuracy.render,
-    "benchmarks": md_benchmark.render,
-    "validation": _validation,
-    "long runs": long_runs.render,
-    "splitting": splitting.render,
-    "physics": physics.render,
-    "energy program": lambda: {energy_program.PAGE: energy_program.render_blocks()},
-}
+#: Every generator: what it renders, by page and block name.
+GENERATORS: tuple[Callable[[], dict[Path, dict[str, str]]], ...] = (
+    guide.render,
+    main_job.pages,
+    accuracy.render,
+    md_benchmark.render,
+    validation.render,
+    long_runs.render,
+    splitting.render,
+    physics.render,
+    energy_program.render,
+)
 
 
 def render() -> dict[Path, dict[str, str]]:
     """Every generated block of every page, by page and block name."""
     pages: dict[Path, dict[str, str]] = {}
-    for make in GENERATORS.values():
+    for make in GENERATORS:
         for page, blocks in make().items():
             pages.setdefault(page, {}).update(blocks)
     return pages
@@ -74,6 +65,7 @@ def stale() -> list[str]:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Rewrite (or with ``--check`` compare) every generated block; return the exit status."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--check", action="store_true", help="write nothing; exit 1 if a block differs")
     parser.add_argument("--figures", action="store_true", help="also draw the figures from docs/data/")

@@ -323,6 +323,11 @@ def outline(program: Program) -> str:
 
 
 # ------------------------------------------------------------------ the page
+def render() -> dict[Path, dict[str, str]]:
+    """Return the page's generated blocks, by page and name."""
+    return {PAGE: render_blocks()}
+
+
 def render_blocks(programs: dict[int, Program] | None = None) -> dict[str, str]:
     """Return the page's generated blocks, by name."""
     programs = programs or {order: record_program(order) for order in ORDERS}

@@ -27,6 +27,9 @@ from openmm_alphaprk.benchmarks.validation.methods import FD_FLOOR
 from tools.reports.markdown import Column, series, table, update_page
 from tools.reports.sources import DATA, DOCS, provenance_line, source
 
+#: The validation's data, under docs/data/.
+JSON = "validation/validation.json"
+
 
 # ------------------------------------------------------------------ the tables
 def sci(value: float, digits: int = 2) -> str:
@@ -151,7 +154,7 @@ def render_tables(data: dict) -> dict[str, str]:
         Column("force evaluations / step", "{force_evaluations_per_step:.2f}"),
     ]
     return {
-        "provenance": provenance_line([source("validation/validation.json")], run),
+        "provenance": provenance_line([source(JSON)], run),
         "headline": render_headline(data),
         "plain_pendulum_energy": table(plain, plain_columns),
         "orders": table(orders, orders_columns),
@@ -162,6 +165,11 @@ def render_tables(data: dict) -> dict[str, str]:
         "box_energy": table([{"name": n, **run} for n, run in box.items()], box_columns),
         "long_runs": table(long_rows, long_columns),
     }
+
+
+def render() -> dict[Path, dict[str, str]]:
+    """docs/validation.md's tables, from the validation's data."""
+    return {DOCS / "validation.md": render_tables(json.loads((DATA / JSON).read_text(encoding="utf-8")))}
 
 
 def render_headline(data: dict) -> str:
@@ -364,7 +372,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     scratch = Path(tempfile.mkdtemp(prefix="alphaprk-validation-"))
     default = not args.quick
-    json_path = args.json or (DATA / "validation" / "validation.json" if default else scratch / "v.json")
+    json_path = args.json or (DATA / JSON if default else scratch / "v.json")
     figures = args.figures or (DOCS / "figures" if default else scratch / "figures")
     page = args.page or (DOCS / "validation.md" if default else None)
     if args.from_json:
