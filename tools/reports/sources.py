@@ -78,12 +78,6 @@ def provenance_line(sources: list[Source], run: str, data: str = "data/") -> str
 
 
 # ------------------------------------------------------------------ the rows' one schema
-def canonical(row: dict) -> str | None:
-    """Return the registry's name of a row's integrator (``parse_integrator(spec).name``), None if unnamed."""
-    spec = row.get("integrator")
-    return parse_name(spec) if isinstance(spec, str) else None
-
-
 def pick(rows: list[dict], name: str, divisor: int = 1, labelled: str | None = None, **match) -> dict:
     """Return the one row of ``rows`` of the integrator ``name`` at h/``divisor`` (and the ``match`` fields).
 
@@ -98,12 +92,19 @@ def pick(rows: list[dict], name: str, divisor: int = 1, labelled: str | None = N
         labels = {label(name), labelled}
     except ValueError:
         labels = {labelled}
+
+    def named(row: dict) -> bool:
+        spec = row.get("integrator")
+        return (
+            parse_name(spec) == wanted
+            if isinstance(spec, str)
+            else spec is None and row.get("name") in labels
+        )
+
     found = [
         row
         for row in rows
-        if (canonical(row) == wanted or (row.get("integrator") is None and row.get("name") in labels))
-        and row.get("divisor", 1) == divisor
-        and all(row.get(key) == value for key, value in match.items())
+        if named(row) and row.get("divisor", 1) == divisor and all(row.get(k) == v for k, v in match.items())
     ]
     if len(found) != 1:
         raise LookupError(f"{len(found)} rows of {name} at h/{divisor} {match or ''}")
