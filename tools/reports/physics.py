@@ -200,15 +200,12 @@ def rescaling_table(data: dict) -> str:
     for path, totals in runs.items():
         by_setting.setdefault(Path(path).parent.name, []).append(totals)
     rows = []
-    for name, group in sorted(
-        by_setting.items(), key=lambda item: (float(item[0].split("@")[-1][:-2]), item[0])
-    ):
+    for name, group in sorted(by_setting.items(), key=lambda item: (_step(item[0]), item[0])):
         cells = []
         for key in ("mean_scale_change", "rms_scale_change", "added_energy_per_ns"):
             values = [g[key] for g in group]
             cells.append(_pm(*_mean_error(values), 2) if len(values) > 1 else _pm(values[0], None, 2))
-        integrator, _, step = name.rpartition("@")
-        rows.append([f"`{integrator}` at {step[:-2]} fs"] + cells)
+        rows.append([_setting(name)] + cells)
     return markdown_table("setting | mean s − 1 | RMS s − 1 | energy added (kJ/mol/ns)", rows) + (
         "\n\nPer segment over all its rescalings (`summary.json`'s `rescaling`), mean ± standard error "
         "over the segments. Energy added = −Σ(H − E_ref before each scaling) per ns of simulated time."
@@ -225,13 +222,8 @@ def order_table(data: dict) -> str:
             rows.append([f"`{name}`", fluctuations, f"{entry['fitted_order']:.2f}"])
         else:
             relative = ", ".join(sig(r["relative"], 2) for r in entry["rows"])
-            rows.append(
-                [
-                    f"`{name}`",
-                    f"RMS(H − E_ref)/|E_ref|: {relative}",
-                    "round-off" if all(r["at_round_off"] for r in entry["rows"]) else "above round-off",
-                ]
-            )
+            verdict = "round-off" if all(r["at_round_off"] for r in entry["rows"]) else "above round-off"
+            rows.append([f"`{name}`", f"RMS(H − E_ref)/|E_ref|: {relative}", verdict])
     steps = ", ".join(f"{h:g}" for h in data["arguments"]["order"]["timesteps"])
     fits = data["order"]["rescaling"].get("fits", {})
     powers = "; ".join(
@@ -264,14 +256,13 @@ def temperature_table(data: dict) -> str:
     for name, entry in sorted(paired.items(), key=lambda item: (_step(item[0]), item[0])):
         if entry["temperature_difference_K"][1] == 0:  # the reference itself
             continue
-        cells = [f"`{name.rpartition('@')[0]}` at {name.rpartition('@')[2][:-2]} fs"]
+        cells = [_setting(name)]
         for key in ("temperature_difference_K", "potential_difference_kJ_per_mol"):
             value, error = entry[key]
-            cells.append(_signed(value, error))
+            distance = "-"
             if key in limit and error > 0:
-                cells.append(f"{(value - limit[key][0]) / math.hypot(error, limit[key][1]):+.1f}")
-            else:
-                cells.append("-")
+                distance = f"{(value - limit[key][0]) / math.hypot(error, limit[key][1]):+.1f}"
+            cells += [_signed(value, error), distance]
         rows.append(cells)
     header = "setting | ΔT (K) | ΔT − limit (errors) | ΔU (kJ/mol) | ΔU − limit (errors)"
     limit_text = "-"
@@ -291,6 +282,12 @@ def _step(folder: str) -> float:
     return float(folder.rpartition("@")[2][:-2])
 
 
+def _setting(folder: str) -> str:
+    """Name the setting of a run folder ``NAME@2fs`` as the page does: ```NAME`` at 2 fs`."""
+    integrator, _, step = folder.rpartition("@")
+    return f"`{integrator}` at {step[:-2]} fs"
+
+
 def _signed(value: float, error: float) -> str:
     """Write ``+value ± error``."""
     return f"{value:+.2g} ± {sig(error)}"
@@ -305,22 +302,15 @@ def stress_table(data: dict, gaps: tuple[tuple[str, str, str, str], ...]) -> str
             values = np.array([_window_gap(w, group_a, a, group_b, b) for w in run["windows"]])
             fit = np.polyfit(times, values, 1, cov=True) if len(times) > 3 else None
             trend = "-" if fit is None else _pm(100 * fit[0][0], 100 * math.sqrt(fit[1][0, 0]), 2)
-            integrator, _, step = name.rpartition("@")
             length = "" if run.get("complete", True) else f" (stopped at {times[-1]:.0f} ps)"
-            gap = f"{group_a} {a} − {group_b} {b}"
-            spread = f"{np.std(values, ddof=1):.1f}"
-            rows.append(
-                [
-                    f"`{integrator}` at {step[:-2]} fs{length}",
-                    gap,
-                    f"{values[0]:+.1f}",
-                    f"{values[-1]:+.1f}",
-                    trend,
-                    spread,
-                ]
-            )
-    header = "row | gap | first window (K) | last window (K) | trend (K per 100 ps) | spread (K)"
+            cells = [f"{values[0]:+.1f}", f"{values[-1]:+.1f}", trend, f"{np.std(values, ddof=1):.1f}"]
+            rows.append([_setting(name) + length, f"{group_a} {a} − {group_b} {b}", *cells])
     windows = next(iter(data["stress"].values()))["windows"]
+    text = (
+        f"\n\n{len(windows)} consecutive windows of each run, each partition's temperature "
+        "2⟨K⟩/(N k_B) over the window's frames; trend: least-squares slope of the gap against "
+        "time ± its standard error; spread: standard deviation of the gap over the windows."
+    )
     energy = [
         [
             f"`{name.rpartition('@')[0]}`",
@@ -330,21 +320,11 @@ def stress_table(data: dict, gaps: tuple[tuple[str, str, str, str], ...]) -> str
         for name, run in data["stress"].items()
         if (summary := run.get("summary")) and (dof := summary["degrees_of_freedom"])
     ]
-    energy_text = (
-        "\n\nOver each whole run:\n\n"
-        + markdown_table("row | drift of H (kJ/mol/ns) | energy the scaling added (kJ/mol/ns)", energy)
-        if energy
-        else ""
-    )
-    return (
-        markdown_table(header, rows)
-        + (
-            f"\n\n{len(windows)} consecutive windows of each run, each partition's temperature "
-            "2⟨K⟩/(N k_B) over the window's frames; trend: least-squares slope of the gap against "
-            "time ± its standard error; spread: standard deviation of the gap over the windows."
-        )
-        + energy_text
-    )
+    if energy:
+        header = "row | drift of H (kJ/mol/ns) | energy the scaling added (kJ/mol/ns)"
+        text += "\n\nOver each whole run:\n\n" + markdown_table(header, energy)
+    header = "row | gap | first window (K) | last window (K) | trend (K per 100 ps) | spread (K)"
+    return markdown_table(header, rows) + text
 
 
 def _window_gap(window: dict, group_a: str, a: str, group_b: str, b: str) -> float:
@@ -374,12 +354,9 @@ def figures(data: dict, stem: str) -> None:
         plt.close(fig)
     if "stress" in data:
         fig, ax = plt.subplots(figsize=(7, 4))
-        solute = "solute" in next(iter(data["stress"].values()))["windows"][0]["temperatures"]
-        gap = (
-            ("solute", "total", "solvent", "total")
-            if solute
-            else ("system", "translational", "system", "rotational")
-        )
+        gap = ("system", "translational", "system", "rotational")
+        if "solute" in next(iter(data["stress"].values()))["windows"][0]["temperatures"]:
+            gap = ("solute", "total", "solvent", "total")
         for name, run in data["stress"].items():
             times = [w["end_ps"] for w in run["windows"]]
             ax.plot(times, [_window_gap(w, *gap) for w in run["windows"]], marker="o", label=name)
