@@ -42,16 +42,11 @@ def rows_table(result: dict) -> str:
     for row in result["rows"]:
         errors = {h["time_fs"]: h for h in row["horizons"]}
         ratio = row["time_ratio"]
-        cells = [
-            f"**{row['name']}**" if row["divisor"] == 1 else row["name"],
-            f"{row['force_evaluations_per_step']:.2f}",
-            f"{ratio:.2f}" if ratio is not None and math.isfinite(ratio) else "",
-            _sci(row["rms_residual"]),
-        ]
-        cells += [_sci(errors[t]["position_rms"]) if t in errors else "–" for t in horizons]
-        cells += [
-            _sci(errors[t]["velocity_rms"]) if t in errors else "–" for t in (horizons[0], horizons[-1])
-        ]
+        name = f"**{row['name']}**" if row["divisor"] == 1 else row["name"]
+        ratio = f"{ratio:.2f}" if ratio is not None and math.isfinite(ratio) else ""
+        cells = [name, f"{row['force_evaluations_per_step']:.2f}", ratio, _sci(row["rms_residual"])]
+        for key, times in (("position_rms", horizons), ("velocity_rms", (horizons[0], horizons[-1]))):
+            cells += [_sci(errors[t][key]) if t in errors else "–" for t in times]
         lines.append(cells)
     floor = result["reference_convergence"]
     if floor:
@@ -134,9 +129,7 @@ def composition_verdicts(result: dict) -> str:
 
 def equilibrium_table(result: dict) -> str:
     """Each quantity's mean ± SE, and each row's difference from the reference with its verdict."""
-    equilibrium = result.get("equilibrium") or {}
-    if not equilibrium:
-        return "(not measured for this system)"
+    equilibrium = result["equilibrium"]
     keys = list(next(iter(equilibrium.values())))
     titles = {
         "temperature_K": "T (K)",
@@ -144,17 +137,15 @@ def equilibrium_table(result: dict) -> str:
         "rdf_peak_height": "O–O g(r) peak",
         "rdf_peak_position_nm": "peak position (nm)",
     }
-    lines = []
-    for name, averages in equilibrium.items():
-        cells = [name]
-        for key in keys:
-            a = averages[key]
-            text = f"{a['mean']:.5g} ± {a['standard_error']:.2g}"
-            if a["difference"] is not None:
-                verdict = "**resolved**" if a["resolved"] else "not resolved"
-                text += f"; Δ {a['difference']:+.2g} ± {a['difference_standard_error']:.2g}, {verdict}"
-            cells.append(text)
-        lines.append(cells)
+
+    def cell(a: dict) -> str:
+        text = f"{a['mean']:.5g} ± {a['standard_error']:.2g}"
+        if a["difference"] is None:
+            return text
+        verdict = "**resolved**" if a["resolved"] else "not resolved"
+        return text + f"; Δ {a['difference']:+.2g} ± {a['difference_standard_error']:.2g}, {verdict}"
+
+    lines = [[name, *(cell(averages[key]) for key in keys)] for name, averages in equilibrium.items()]
     return markdown_table(["row", *(titles.get(key, key) for key in keys)], lines)
 
 
