@@ -122,7 +122,7 @@ def test_the_splitting_page_blocks():
     assert {"survey tip3p-2nm 2 fs", "survey villin 2 fs", "survey verdicts"} <= set(blocks)
     # the verdicts are the data's: the minimum-error member's ratio to RATTLE at h/2, goal by goal
     found = splitting.compare("villin_2fs.json")
-    assert found is not None and f"| {found.energy:.2f} (≥ 3: **met**) |" in blocks["survey verdicts"]
+    assert found is not None and f"| {found['energy']:.2f} (≥ 3: **met**) |" in blocks["survey verdicts"]
 
 
 def test_the_long_runs_and_physics_pages_blocks():

@@ -1,20 +1,15 @@
-"""The generated blocks of docs/splitting.md from docs/data/splitting/ (the explicit α-family's survey).
-
-Part of ``python -m tools.reports``. The data are written by
-``tools/scripts/splitting_survey.py``.
-"""
+"""docs/splitting.md's generated blocks from docs/data/splitting/ (written by tools/scripts)."""
 
 from __future__ import annotations
 
 import re
 from pathlib import Path
-from typing import NamedTuple
 
 from openmm_alphaprk.runs.integrator_names import label
 from tools.reports.long_runs import long_table
 from tools.reports.markdown import Column, markdown_table, table
 from tools.reports.numbers import sig, times, tolerance
-from tools.reports.sources import DOCS, Source, load, provenance_line
+from tools.reports.sources import DOCS, load, provenance_line
 
 PAGE = DOCS / "splitting.md"
 FOLDER = "splitting/"
@@ -116,36 +111,28 @@ def survey_table(path: str) -> str:
     return table(data["rows"], columns, provenance_line([source], run))
 
 
-class Comparison(NamedTuple):
-    """The minimum-error member against RATTLE at h/2 in one survey (ratios > 1: the member better)."""
+def compare(path: str) -> dict | None:
+    """Return `split-me` against RATTLE at h/2 in the survey ``path`` (None without both rows).
 
-    data: dict
-    source: Source
-    energy: float
-    positions: tuple[float, ...]
-    rescaled_fraction: float | None
-    rescaled_rms: float | None
-
-
-def compare(path: str) -> Comparison | None:
-    """Return `split-me` against RATTLE at h/2 in the survey ``path`` (None without both rows)."""
-    data, source = load(FOLDER + path)
+    Its ``energy`` and ``positions``: RATTLE at h/2's errors over the member's (above 1: the
+    member better); ``rescaled_rms`` and ``rescaled_fraction``: `split-me+rescale`'s RMS(H − E_ref)
+    and that over RATTLE's at h (None without those rows).
+    """
+    data, _ = load(FOLDER + path)
     rows = _rows(data)
     me, half = rows.get("split-me"), rows.get("RATTLE at h/2")
     if me is None or half is None:
         return None
     rescaled, rattle = rows.get("split-me+rescale"), rows.get("RATTLE at h")
-    fraction = None
-    if rescaled is not None and rattle is not None:
-        fraction = rescaled["rms_residual"] / rattle["rms_residual"]
-    return Comparison(
-        data,
-        source,
-        half["rms_residual"] / me["rms_residual"],
-        tuple(a / b for a, b in zip(me["position_rms"], half["position_rms"])),
-        fraction,
-        None if rescaled is None else rescaled["rms_residual"],
-    )
+    return {
+        "data": data,
+        "energy": half["rms_residual"] / me["rms_residual"],
+        "positions": [a / b for a, b in zip(me["position_rms"], half["position_rms"])],
+        "rescaled_rms": None if rescaled is None else rescaled["rms_residual"],
+        "rescaled_fraction": None
+        if rescaled is None or rattle is None
+        else rescaled["rms_residual"] / rattle["rms_residual"],
+    }
 
 
 def _verdict(met: bool) -> str:
@@ -157,9 +144,9 @@ def survey_verdicts() -> str:
     rows = []
     for _, path in SURVEYS:
         if (found := compare(path)) is not None:
-            h = found.data["timestep_fs"]
-            goal = ENERGY_GOAL.get(h) if found.data["system"] in GOAL_SYSTEMS.get(h, ()) else None
-            rows.append({**found._asdict(), "path": path, "goal": goal})
+            h = found["data"]["timestep_fs"]
+            goal = ENERGY_GOAL.get(h) if found["data"]["system"] in GOAL_SYSTEMS.get(h, ()) else None
+            rows.append({**found, "path": path, "goal": goal})
 
     def energy(r: dict) -> str:
         goal = r["goal"]
