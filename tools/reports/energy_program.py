@@ -36,17 +36,12 @@ ORDERS = (2, 4)
 HELPERS = ("_add_sum", "_add_count_force_evaluation")
 
 _INTEGRATORS = Path(integrators_package.__file__).parent
-_ADD = (
-    "addComputeGlobal",
-    "addComputePerDof",
-    "addComputeSum",
-    "addConstrainPositions",
-    "addConstrainVelocities",
-    "addUpdateContextState",
-    "beginIfBlock",
-    "beginWhileBlock",
-    "endBlock",
-)
+#: The methods of a CustomIntegrator that add a computation (or open or close a block).
+_ADD = [
+    n
+    for n in dir(mm.CustomIntegrator)
+    if n.startswith(("addCompute", "addConstrain", "addUpdate", "begin", "end"))
+]
 _BEGIN = (mm.CustomIntegrator.IfBlockStart, mm.CustomIntegrator.WhileBlockStart)
 _WRITES_GLOBAL = (mm.CustomIntegrator.ComputeGlobal, mm.CustomIntegrator.ComputeSum)
 #: How the outline names the computations that assign no variable.
