@@ -9,7 +9,7 @@ import pytest
 
 from openmm_alphaprk.benchmarks.md_sweep.analysis import compare_dynamics
 from openmm_alphaprk.benchmarks.md_sweep.tables import scan_table
-from tools.reports.markdown import page_tables, replace_generated
+from tools.reports.markdown import page_tables, replace_blocks
 from tools.reports.md_benchmark import JSON_OUT, PAGE, blocks, scan_markdown
 
 
@@ -55,14 +55,15 @@ def test_largest_stable_step_is_the_last_before_the_first_unstable_or_failed_ste
     assert scan_table({k: v for k, v in rows.items() if v["timestep_fs"] <= 2.0}, "box") == {}
 
 
-def test_generated_blocks_are_replaced_and_missing_markers_refused():
+def test_generated_blocks_are_replaced_and_missing_markers_reported():
     page = "intro\n<!-- generated: x -->\nold\ntext\n<!-- end generated: x -->\nrest\n<!-- generated: y -->\n"
     page += "<!-- end generated: y -->\n"
-    new = replace_generated(page, "x", "new table\n")
+    new, missing = replace_blocks(page, {"x": "new table\n"})
     assert new.startswith("intro\n<!-- generated: x -->\nnew table\n<!-- end generated: x -->\nrest")
-    assert replace_generated(new, "y", "filled").count("filled") == 1
-    with pytest.raises(SystemExit, match="no markers"):
-        replace_generated(page, "z", "anything")
+    assert missing == []
+    filled, missing = replace_blocks(new, {"y": "filled"})
+    assert filled.count("filled") == 1 and missing == []
+    assert replace_blocks(page, {"z": "anything"}) == (page, ["z"])
 
 
 def test_dynamics_comparison():

@@ -20,12 +20,6 @@ BLOCK_PATTERN = re.compile(
 )
 
 
-def block(name: str, content: str) -> str:
-    """Return the generated block ``name`` holding ``content`` (trailing newlines dropped)."""
-    body = content.rstrip("\n")
-    return f"<!-- generated: {name} -->\n{body}\n<!-- end generated: {name} -->"
-
-
 def markdown_table(header: Sequence[str] | str, rows: list[list[str]], aligns: Sequence[str] = ()) -> str:
     """Render a Markdown table: the header, the alignment line (``---`` by default), one line per row.
 
@@ -80,7 +74,10 @@ def page_tables(page: Path) -> dict[str, str]:
 
 
 def replace_blocks(text: str, blocks: dict[str, str]) -> tuple[str, list[str]]:
-    """Return ``text`` with the generated blocks that ``blocks`` names replaced, and the names it lacks."""
+    """Return ``text`` with the generated blocks that ``blocks`` names replaced, and the names it lacks.
+
+    A block's new content is written without its trailing newlines.
+    """
     found = set()
 
     def replace(match: re.Match) -> str:
@@ -88,17 +85,10 @@ def replace_blocks(text: str, blocks: dict[str, str]) -> tuple[str, list[str]]:
         if name not in blocks:
             return match.group(0)
         found.add(name)
-        return block(name, blocks[name])
+        body = blocks[name].rstrip("\n")
+        return f"<!-- generated: {name} -->\n{body}\n<!-- end generated: {name} -->"
 
     return BLOCK_PATTERN.sub(replace, text), sorted(set(blocks) - found)
-
-
-def replace_generated(text: str, name: str, content: str, where: object = "the page") -> str:
-    """Replace the content of the generated block ``name`` in ``text``; exit if it has no such block."""
-    new, missing = replace_blocks(text, {name: content})
-    if missing:
-        raise SystemExit(f"{where} has no markers for the generated block {name!r}.")
-    return new
 
 
 def update_page(page: Path, blocks: dict[str, str]) -> list[str]:
