@@ -60,8 +60,8 @@ def gain(rows: list[dict], name: str) -> float:
 def accuracy_columns(every: bool) -> list[Column]:
     """Return the columns of the accuracy tables: one per system for each measure, or the three joined."""
 
-    def measure(title, value, show=sig):
-        if every:
+    def measure(title, value, show=sig, joined=not every):
+        if not joined:
             return [Column(f"{title}, {s}", lambda r, s=s: show(value(r[s], r["name"]))) for s in SYSTEMS]
         return [Column(title, lambda r: " / ".join(show(value(r[s], r["name"])) for s in SYSTEMS))]
 
@@ -76,12 +76,7 @@ def accuracy_columns(every: bool) -> list[Column]:
         *measure("× below RATTLE at equal evaluations", gain, times),
     ]
     if every:
-        columns.append(
-            Column(
-                "CPU time / RATTLE's",
-                lambda r: " / ".join(two(field("time_ratio")(r[s], r["name"])) for s in SYSTEMS),
-            )
-        )
+        columns += measure("CPU time / RATTLE's", field("time_ratio"), two, joined=True)
     return columns
 
 
