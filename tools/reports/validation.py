@@ -220,7 +220,7 @@ def _log_axes(ax, hs, xlabel: str, ylabel: str, title: str, legend: float) -> No
     ax.legend(fontsize=legend)
 
 
-def figure_convergence(plt, data: dict, path: Path) -> None:
+def figure_convergence(plt, data: dict):
     """Plot the error against h, log-log, with fitted slopes: three panels."""
     conv = data["convergence"]
     fig, axes = plt.subplots(1, 3, figsize=(16, 5.2))
@@ -235,12 +235,10 @@ def figure_convergence(plt, data: dict, path: Path) -> None:
             label = f"{entry['label']} (slope {entry['fitted_order']:.2f})"
             ax.loglog(hs, entry["errors"], "s--" if entry["order"] == 4 else "o-", ms=4, label=label)
         _log_axes(ax, hs, *labels, legend=6.5)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    return fig
 
 
-def figure_symplecticity(plt, data: dict, path: Path) -> None:
+def figure_symplecticity(plt, data: dict):
     """Plot the symplecticity defect against h (pendulum) and per method (3 waters)."""
     sym = data["symplecticity"]
     fig, (left, right) = plt.subplots(1, 2, figsize=(13, 5))
@@ -260,12 +258,10 @@ def figure_symplecticity(plt, data: dict, path: Path) -> None:
     right.invert_yaxis()
     right.axvline(FD_FLOOR, color="k", lw=0.8, ls="--")
     right.set(xlabel="relative change of ω over 10 steps of 2 fs", title="3 rigid waters")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    return fig
 
 
-def figure_alpha_star(plt, data: dict, path: Path) -> None:
+def figure_alpha_star(plt, data: dict):
     """Plot |α*| against h (reference) and histograms of α* on the 774-atom box (OpenMM)."""
     conv = data["convergence"]
     fig, axes = plt.subplots(2, 2, figsize=(12, 9))
@@ -288,22 +284,15 @@ def figure_alpha_star(plt, data: dict, path: Path) -> None:
         ax.hist(alphas, bins=60, color="C0" if name == "energy" else "C3")
         ax.set(xlabel="α used by the OpenMM controller", ylabel="steps")
         ax.set_title(f"{name}: tip3p-2nm (774 atoms, PME), 2 fs, {alphas.size} steps, CPU")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    return fig
 
 
-def figure_long_runs(plt, data: dict, path: Path) -> None:
+def figure_long_runs(plt, data: dict):
     """Plot |ΔL|, |ΔP| (scaled), constraint error and H − E_ref against time (Reference solid, CPU dashed)."""
     runs = data["long_runs"]
     fig, axes = plt.subplots(2, 2, figsize=(13, 9), sharex=True)
-    colors = {
-        "rattle": "C0",
-        "alpha=1/6": "C1",
-        "energy": "C2",
-        "energy4": "C3",
-        "energy, midpoint 1e-12 nm": "C4",
-    }
+    names = ("rattle", "alpha=1/6", "energy", "energy4", "energy, midpoint 1e-12 nm")
+    colors = {name: f"C{i}" for i, name in enumerate(names)}
     for platform_name, block in runs["platforms"].items():
         reference = platform_name == "Reference"
         for name, run in block["runs"].items():
@@ -333,13 +322,11 @@ def figure_long_runs(plt, data: dict, path: Path) -> None:
         ax.set_xlabel("time (ps)")
     axes[0, 0].legend(fontsize=7, ncol=2)
     fig.suptitle(f"water-cluster ({runs['n_atoms']} atoms, vacuum, no cutoff), 2 fs, driver defaults")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    return fig
 
 
 def write_figures(data: dict, folder: Path) -> None:
-    """Draw the four figures into ``folder`` (created if missing) as ``validation_*.png``."""
+    """Draw the four figures (each ``figure_*`` returns its own) into ``folder`` as ``validation_*.png``."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -352,7 +339,10 @@ def write_figures(data: dict, folder: Path) -> None:
         ("alpha_star", figure_alpha_star),
         ("long_runs", figure_long_runs),
     ):
-        draw(plt, data, folder / f"validation_{name}.png")
+        fig = draw(plt, data)
+        fig.tight_layout()
+        fig.savefig(folder / f"validation_{name}.png", dpi=110)
+        plt.close(fig)
 
 
 # ------------------------------------------------------------------ the command
