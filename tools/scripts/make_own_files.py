@@ -34,6 +34,8 @@ def P(name):  # noqa: N802 - the output path of a file
 BOX_PEP = 2.6  # nm, cubic
 BOX_W4 = 2.4  # nm, cubic (cutoff 0.9 nm < half edge)
 SEED = 2024
+#: Every system's electrostatics: PME, cutoff 0.9 nm.
+NONBONDED = {"nonbondedMethod": app.PME, "nonbondedCutoff": 0.9 * nanometer}
 
 
 def platform():
@@ -195,13 +197,7 @@ def main(argv: list[str] | None = None) -> None:
     )
     print("peptide system atoms:", mod.topology.getNumAtoms(), "residues:", mod.topology.getNumResidues())
 
-    sys_md = ff.createSystem(
-        mod.topology,
-        nonbondedMethod=app.PME,
-        nonbondedCutoff=0.9 * nanometer,
-        constraints=app.HBonds,
-        rigidWater=True,
-    )
+    sys_md = ff.createSystem(mod.topology, constraints=app.HBonds, rigidWater=True, **NONBONDED)
     sim = relaxed(mod, sys_md, minimize_iterations=2000, steps=2000)  # 4 ps
     st = sim.context.getState(getPositions=True, getVelocities=True, getEnergy=True, enforcePeriodicBox=True)
     positions = st.getPositions(asNumpy=True)
@@ -217,9 +213,7 @@ def main(argv: list[str] | None = None) -> None:
     print(f"ForceField(HBonds) energy at final positions: {e_ff:.3f} kJ/mol")
 
     # ---------------- 2. AMBER
-    sys_flex = ff.createSystem(
-        topology, nonbondedMethod=app.PME, nonbondedCutoff=0.9 * nanometer, constraints=None, rigidWater=False
-    )
+    sys_flex = ff.createSystem(topology, constraints=None, rigidWater=False, **NONBONDED)
     struct = parmed.openmm.load_topology(topology, sys_flex, xyz=positions)
     # load_topology names atom types after unique LJ parameters (C1, H1, ...), which merges
     # Amber atom classes with equal LJ but different bonded parameters.  Rename them to the
@@ -311,9 +305,7 @@ def main(argv: list[str] | None = None) -> None:
     ff4 = app.ForceField("amber14/tip4pew.xml")
     m4 = app.Modeller(app.Topology(), [])
     m4.addSolvent(ff4, model="tip4pew", boxSize=openmm.Vec3(BOX_W4, BOX_W4, BOX_W4) * nanometer)
-    s4 = ff4.createSystem(
-        m4.topology, nonbondedMethod=app.PME, nonbondedCutoff=0.9 * nanometer, removeCMMotion=False
-    )
+    s4 = ff4.createSystem(m4.topology, removeCMMotion=False, **NONBONDED)
     sim4 = relaxed(m4, s4, minimize_iterations=1000, steps=500)  # 1 ps
     st4 = sim4.context.getState(
         getPositions=True, getVelocities=True, getEnergy=True, enforcePeriodicBox=True
