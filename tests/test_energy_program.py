@@ -75,9 +75,7 @@ def test_the_page_is_what_the_programs_give_now(programs):
     on_page = markdown.page_tables(page)
     assert set(on_page) == set(rendered)
     for name, block in rendered.items():
-        assert on_page[name] == block, (
-            f"{page.name}, block {name!r}: run python -m tools.reports"
-        )
+        assert on_page[name] == block, f"{page.name}, block {name!r}: run python -m tools.reports"
 
 
 def test_the_pages_prose_names_what_exists(programs):

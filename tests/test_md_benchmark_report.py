@@ -9,8 +9,8 @@ import pytest
 
 from openmm_alphaprk.benchmarks.md_sweep.analysis import compare_dynamics
 from openmm_alphaprk.benchmarks.md_sweep.tables import scan_table
-from tools.reports.markdown import page_tables, read_blocks, replace_generated
-from tools.reports.md_benchmark import JSON_OUT, PAGE, render_page, scan_markdown
+from tools.reports.markdown import page_tables, replace_blocks
+from tools.reports.md_benchmark import JSON_OUT, PAGE, blocks, scan_markdown
 
 
 def _row(system, integrator, step, status="ok", max_abs=0.1, dof=1000.0):
@@ -55,14 +55,15 @@ def test_largest_stable_step_is_the_last_before_the_first_unstable_or_failed_ste
     assert scan_table({k: v for k, v in rows.items() if v["timestep_fs"] <= 2.0}, "box") == {}
 
 
-def test_generated_blocks_are_replaced_and_missing_markers_refused():
+def test_generated_blocks_are_replaced_and_missing_markers_reported():
     page = "intro\n<!-- generated: x -->\nold\ntext\n<!-- end generated: x -->\nrest\n<!-- generated: y -->\n"
     page += "<!-- end generated: y -->\n"
-    new = replace_generated(page, "x", "new table\n")
+    new, missing = replace_blocks(page, {"x": "new table\n"})
     assert new.startswith("intro\n<!-- generated: x -->\nnew table\n<!-- end generated: x -->\nrest")
-    assert replace_generated(new, "y", "filled").count("filled") == 1
-    with pytest.raises(SystemExit, match="no markers"):
-        replace_generated(page, "z", "anything")
+    assert missing == []
+    filled, missing = replace_blocks(new, {"y": "filled"})
+    assert filled.count("filled") == 1 and missing == []
+    assert replace_blocks(page, {"z": "anything"}) == (page, ["z"])
 
 
 def test_dynamics_comparison():
@@ -100,7 +101,7 @@ def test_page_tables_are_the_ones_rendered_from_the_json():
     """docs/benchmarks.md's generated tables are what the report renders from its JSON."""
     report = json.loads(JSON_OUT.read_text(encoding="utf-8"))
     on_page = page_tables(PAGE)
-    rendered = read_blocks(render_page(PAGE.read_text(encoding="utf-8"), report))
+    rendered = blocks(report)
     assert set(on_page) == set(rendered) and len(on_page) == 9
     for name, table in rendered.items():
         assert on_page[name] == table, f"table {name!r} of docs/benchmarks.md is not the JSON's"

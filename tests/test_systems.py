@@ -132,6 +132,7 @@ def test_a_named_solute_with_a_hydrogen_mass_is_repartitioned_and_keyed_apart():
     water_h = [a.index for a in topology.atoms() if a.element.symbol == "H" and a.residue.name == "HOH"]
     assert len(protein_h) == 293 and all(mass[i] == 3.0 for i in protein_h)
     assert water_h and all(abs(mass[i] - 1.008) < 1e-3 for i in water_h)
+
     def total(s):
         return sum(s.getParticleMass(i).value_in_unit(unit.amu) for i in range(s.getNumParticles()))
 

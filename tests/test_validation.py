@@ -32,7 +32,7 @@ from openmm_alphaprk.reference import (
     symplecticity_defect,
     water_cluster,
 )
-from tools.reports import markdown, validation_tables
+from tools.reports import markdown, validation
 
 DOCS = Path(__file__).resolve().parents[1] / "docs"
 
@@ -380,7 +380,7 @@ def test_openmm_energy_modes_on_the_774_atom_box(tmp_path):
 def test_page_tables_are_the_ones_rendered_from_the_json():
     data = json.loads((DOCS / "data" / "validation" / "validation.json").read_text(encoding="utf-8"))
     assert not data["quick"]
-    rendered = validation_tables.render_tables(data)
+    rendered = validation.render_tables(data)
     on_page = markdown.page_tables(DOCS / "validation.md")
     assert set(on_page) == set(rendered)
     for name, table in rendered.items():

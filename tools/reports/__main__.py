@@ -8,22 +8,18 @@ Run from the repository's root::
 
 A generated block is the text between ``<!-- generated: NAME -->`` and ``<!-- end generated:
 NAME -->``; the prose around it is written by hand and cites it. Each page's blocks come from
-one generator of :data:`GENERATORS`; the experiments that write the data are elsewhere
-(``alphaprk bench``, ``openmm_alphaprk.benchmarks``, ``tools/scripts``), so this command
-only reads. ``tests/test_guide_reports.py`` runs the check.
+one generator of :data:`GENERATORS`; this command only reads the data.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from collections.abc import Callable
 from pathlib import Path
 
 from tools.reports import (
     accuracy,
-    compositions,
     energy_program,
     guide,
     long_runs,
@@ -32,36 +28,29 @@ from tools.reports import (
     physics,
     splitting,
     step_programs,
-    validation_tables,
+    validation,
 )
 from tools.reports.markdown import stale_blocks, update_page
-from tools.reports.sources import DATA, DOCS, ROOT
+from tools.reports.sources import ROOT
 
-
-def _validation() -> dict[Path, dict[str, str]]:
-    data = json.loads((DATA / "validation" / "validation.json").read_text(encoding="utf-8"))
-    return {DOCS / "validation.md": validation_tables.render_tables(data)}
-
-
-#: Every generator: its name and what it renders, by page and block name.
-GENERATORS: dict[str, Callable[[], dict[Path, dict[str, str]]]] = {
-    "guide": guide.render,
-    "main job": main_job.pages,
-    "accuracy": accuracy.render,
-    "compositions": compositions.render,
-    "benchmarks": md_benchmark.render,
-    "validation": _validation,
-    "long runs": long_runs.render,
-    "splitting": splitting.render,
-    "physics": physics.render,
-    "energy program": lambda: {energy_program.PAGE: energy_program.render_blocks()},
-}
+#: Every generator: what it renders, by page and block name.
+GENERATORS: tuple[Callable[[], dict[Path, dict[str, str]]], ...] = (
+    guide.render,
+    main_job.pages,
+    accuracy.render,
+    md_benchmark.render,
+    validation.render,
+    long_runs.render,
+    splitting.render,
+    physics.render,
+    energy_program.render,
+)
 
 
 def render() -> dict[Path, dict[str, str]]:
     """Every generated block of every page, by page and block name."""
     pages: dict[Path, dict[str, str]] = {}
-    for make in GENERATORS.values():
+    for make in GENERATORS:
         for page, blocks in make().items():
             pages.setdefault(page, {}).update(blocks)
     return pages
@@ -76,6 +65,7 @@ def stale() -> list[str]:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Rewrite (or with ``--check`` compare) every generated block; return the exit status."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--check", action="store_true", help="write nothing; exit 1 if a block differs")
     parser.add_argument("--figures", action="store_true", help="also draw the figures from docs/data/")
@@ -90,7 +80,6 @@ def main(argv: list[str] | None = None) -> int:
     step_programs.PAGE.write_text(step_programs.page_text(), encoding="utf-8")
     if args.figures:
         accuracy.figures()
-        compositions.figures()
         physics.render(write_figures=True)
     print("rewrote the generated blocks of every page")
     return 0

@@ -1,11 +1,10 @@
-r"""The tables of docs/accuracy.md from the JSON of ``alphaprk bench accuracy``.
+r"""The tables of docs/accuracy.md and docs/compositions.md from the JSON of ``alphaprk bench accuracy``.
 
-Part of ``python -m tools.reports``, after the benchmark wrote
-``docs/data/accuracy/accuracy_benchmark_SYSTEM.json``: it rewrites the generated blocks of
-``docs/accuracy.md`` (the prose is left alone): per system the rows
-(cost, energy error, position and velocity errors at each horizon), the equal-cost
-verdicts of the energy mode, the equilibrium averages, and the momenta of the isolated
-cluster; and draws ``docs/figures/accuracy_benchmark.png``.
+Part of ``python -m tools.reports``: per system (and, on compositions.md, per step) the rows
+(cost, energy error, position and velocity errors at each horizon) and the verdicts at equal
+cost against RATTLE and RATTLE + rescaling at h/k (k the row's evaluations per step rounded
+up) and RATTLE at the h/r of equal wall time; on accuracy.md also the equilibrium averages
+and the momenta of the isolated cluster. ``--figures`` draws the position errors against time.
 """
 
 from __future__ import annotations
@@ -17,13 +16,19 @@ from pathlib import Path
 from openmm_alphaprk.equal_cost import equal_cost_divisor, gain_text
 from openmm_alphaprk.workflows.plots import plot_accuracy
 from tools.reports.markdown import markdown_table
-from tools.reports.sources import parse_name, pick, provenance_line, source
+from tools.reports.sources import DATA, DOCS, parse_name, pick, provenance_line, source
 
-DOCS = Path(__file__).resolve().parents[2] / "docs"
 SYSTEMS = ("tip3p-2nm", "tip3p-3nm", "villin", "water-cluster")
+#: The steps of compositions.md, each with one or more files ``compositions_accuracy_{step}*.json``.
+STEPS = ("2fs", "4fs")
+#: The rows compositions.md weighs at equal cost, by their command-line names.
+WEIGHED = ("alpha4=0", "rattle4+rescale", "energy4", "alpha6=0", "rattle6+rescale", "alpha4=0:triple-jump")
+#: Times (fs) at which accuracy.md's verdicts compare position errors: a short horizon and 100 fs.
+VERDICT_TIMES = (10.0, 100.0)
 
 
 def _sci(value: float) -> str:
+    """Two significant digits, "–" for no or no finite value."""
     return "–" if value is None or not math.isfinite(value) else f"{value:.2g}"
 
 
@@ -37,16 +42,11 @@ def rows_table(result: dict) -> str:
     for row in result["rows"]:
         errors = {h["time_fs"]: h for h in row["horizons"]}
         ratio = row["time_ratio"]
-        cells = [
-            f"**{row['name']}**" if row["divisor"] == 1 else row["name"],
-            f"{row['force_evaluations_per_step']:.2f}",
-            f"{ratio:.2f}" if ratio is not None and math.isfinite(ratio) else "",
-            _sci(row["rms_residual"]),
-        ]
-        cells += [_sci(errors[t]["position_rms"]) if t in errors else "–" for t in horizons]
-        cells += [
-            _sci(errors[t]["velocity_rms"]) if t in errors else "–" for t in (horizons[0], horizons[-1])
-        ]
+        name = f"**{row['name']}**" if row["divisor"] == 1 else row["name"]
+        ratio = f"{ratio:.2f}" if ratio is not None and math.isfinite(ratio) else ""
+        cells = [name, f"{row['force_evaluations_per_step']:.2f}", ratio, _sci(row["rms_residual"])]
+        for key, times in (("position_rms", horizons), ("velocity_rms", (horizons[0], horizons[-1]))):
+            cells += [_sci(errors[t][key]) if t in errors else "–" for t in times]
         lines.append(cells)
     floor = result["reference_convergence"]
     if floor:
@@ -56,10 +56,6 @@ def rows_table(result: dict) -> str:
             + [_sci(floor[0]["velocity_rms"]), _sci(floor[-1]["velocity_rms"])]
         )
     return markdown_table(header, lines)
-
-
-#: Times (fs) at which the verdicts compare position errors: a short horizon and 100 fs.
-VERDICT_TIMES = (10.0, 100.0)
 
 
 def baselines(rows: list[dict], mine: dict) -> list[tuple[dict, str]]:
@@ -84,31 +80,56 @@ def baselines(rows: list[dict], mine: dict) -> list[tuple[dict, str]]:
     ]
 
 
+def _ratio(value: float) -> str:
+    """Say the baseline's error over the row's: '3.1× lower' (the row wins) or '**2× higher**'."""
+    return gain_text(value, times="×", loss="**{}**")
+
+
+def weighed(result: dict, names: tuple[str, ...], times) -> list[tuple[dict, dict, str, list[str]]]:
+    """Return each row of ``names`` with each baseline of its cost, why, and the error ratios.
+
+    The ratios: the baseline's RMS(H − E_ref) over the row's, then its position error over the
+    row's at each of ``times`` (fs).
+    """
+    found = []
+    for name in names:
+        try:
+            mine = pick(result["rows"], name)
+        except LookupError:
+            continue
+        errors = {h["time_fs"]: h["position_rms"] for h in mine["horizons"]}
+        for row, why in baselines(result["rows"], mine):
+            theirs = {h["time_fs"]: h["position_rms"] for h in row["horizons"]}
+            ratios = [_ratio(row["rms_residual"] / mine["rms_residual"])]
+            ratios += [_ratio(theirs[t] / errors[t]) if t in errors and t in theirs else "–" for t in times]
+            found.append((mine, row, why, ratios))
+    return found
+
+
 def verdicts(result: dict) -> str:
     """Compare the energy mode with RATTLE and RATTLE + rescaling at its k, and RATTLE at its wall time."""
-    mode = pick(result["rows"], "energy4")
-    mine = {h["time_fs"]: h["position_rms"] for h in mode["horizons"]}
-    lines = []
-    for row, why in baselines(result["rows"], mode):
-        theirs = {h["time_fs"]: h["position_rms"] for h in row["horizons"]}
-        cells = [row["name"], f"{why} (energy4)", _ratio(row["rms_residual"] / mode["rms_residual"])]
-        cells += [_ratio(theirs[t] / mine[t]) if t in mine and t in theirs else "–" for t in VERDICT_TIMES]
-        lines.append(cells)
+    lines = [
+        [row["name"], f"{why} (energy4)", *r]
+        for _, row, why, r in weighed(result, ("energy4",), VERDICT_TIMES)
+    ]
     header = ["against", "why", "energy mode's RMS(H − E_ref)"]
-    header += [f"its position error at {t:g} fs" for t in VERDICT_TIMES]
-    return markdown_table(header, lines)
+    return markdown_table(header + [f"its position error at {t:g} fs" for t in VERDICT_TIMES], lines)
 
 
-def _ratio(value: float) -> str:
-    """Say how the energy mode's error compares, given the baseline's error over the energy mode's."""
-    return gain_text(value, times="×", loss="**{}**")
+def composition_verdicts(result: dict) -> str:
+    """For each weighed row, each baseline of its cost: energy and position error ratios at every horizon."""
+    horizons = [h["time_fs"] for h in result["rows"][0]["horizons"]]
+    lines = [
+        [mine["name"], f"{mine['force_evaluations_per_step']:.2f}", row["name"], why, *ratios]
+        for mine, row, why, ratios in weighed(result, WEIGHED, horizons)
+    ]
+    header = ["row", "evals/step", "against", "why", "row's RMS(H − E_ref)"]
+    return markdown_table(header + [f"row's x err. {t:g} fs" for t in horizons], lines)
 
 
 def equilibrium_table(result: dict) -> str:
     """Each quantity's mean ± SE, and each row's difference from the reference with its verdict."""
-    equilibrium = result.get("equilibrium") or {}
-    if not equilibrium:
-        return "(not measured for this system)"
+    equilibrium = result["equilibrium"]
     keys = list(next(iter(equilibrium.values())))
     titles = {
         "temperature_K": "T (K)",
@@ -116,17 +137,15 @@ def equilibrium_table(result: dict) -> str:
         "rdf_peak_height": "O–O g(r) peak",
         "rdf_peak_position_nm": "peak position (nm)",
     }
-    lines = []
-    for name, averages in equilibrium.items():
-        cells = [name]
-        for key in keys:
-            a = averages[key]
-            text = f"{a['mean']:.5g} ± {a['standard_error']:.2g}"
-            if a["difference"] is not None:
-                verdict = "**resolved**" if a["resolved"] else "not resolved"
-                text += f"; Δ {a['difference']:+.2g} ± {a['difference_standard_error']:.2g}, {verdict}"
-            cells.append(text)
-        lines.append(cells)
+
+    def cell(a: dict) -> str:
+        text = f"{a['mean']:.5g} ± {a['standard_error']:.2g}"
+        if a["difference"] is None:
+            return text
+        verdict = "**resolved**" if a["resolved"] else "not resolved"
+        return text + f"; Δ {a['difference']:+.2g} ± {a['difference_standard_error']:.2g}, {verdict}"
+
+    lines = [[name, *(cell(averages[key]) for key in keys)] for name, averages in equilibrium.items()]
     return markdown_table(["row", *(titles.get(key, key) for key in keys)], lines)
 
 
@@ -148,22 +167,21 @@ def momentum_table(result: dict) -> str:
     return markdown_table(header, lines)
 
 
-def _systems() -> dict[str, dict]:
-    found = {}
-    for system in SYSTEMS:
-        path = DOCS / "data" / "accuracy" / f"accuracy_benchmark_{system}.json"
-        if path.is_file():
-            found[system] = json.loads(path.read_text(encoding="utf-8"))["systems"][system]
-    return found
+def _results(pattern: str) -> dict[str, dict]:
+    """Return the results of each system in the files ``pattern`` matches, each with its file (``path``)."""
+    results = {}
+    for path in sorted(DATA.glob(pattern)):
+        found = json.loads(path.read_text(encoding="utf-8"))["systems"]
+        name = path.relative_to(DATA).as_posix()
+        results.update({system: {**result, "path": name} for system, result in found.items()})
+    return results
 
 
 def render() -> dict[Path, dict[str, str]]:
-    """docs/accuracy.md's generated blocks, by name."""
+    """docs/accuracy.md's and docs/compositions.md's generated blocks, by page and name."""
     tables = {}
-    for system, result in _systems().items():
-        tables[f"{system} header"] = provenance_line(
-            [source(f"accuracy/accuracy_benchmark_{system}.json")], result["header"]
-        )
+    for system, result in _results("accuracy/accuracy_benchmark_*.json").items():
+        tables[f"{system} header"] = provenance_line([source(result["path"])], result["header"])
         tables[f"{system} rows"] = rows_table(result)
         if system == "water-cluster":
             tables[f"{system} momenta"] = momentum_table(result)
@@ -171,10 +189,24 @@ def render() -> dict[Path, dict[str, str]]:
         tables[f"{system} verdicts"] = verdicts(result)
         if result.get("equilibrium"):
             tables[f"{system} equilibrium"] = equilibrium_table(result)
-    return {DOCS / "accuracy.md": tables}
+    compositions = {}
+    for step in STEPS:
+        for system, result in _results(f"compositions/compositions_accuracy_{step}*.json").items():
+            compositions[f"{system} {step} header"] = provenance_line(
+                [source(result["path"])], result["header"]
+            )
+            compositions[f"{system} {step} rows"] = rows_table(result)
+            compositions[f"{system} {step} verdicts"] = composition_verdicts(result)
+    return {DOCS / "accuracy.md": tables, DOCS / "compositions.md": compositions}
 
 
 def figures() -> None:
-    """Draw docs/figures/accuracy_benchmark.png."""
-    shown = {name: result for name, result in _systems().items() if name != "water-cluster"}
+    """Draw docs/figures/accuracy_benchmark.png and compositions_accuracy_{2fs,4fs}.png."""
+    shown = _results("accuracy/accuracy_benchmark_*.json")
+    shown = {system: shown[system] for system in SYSTEMS if system != "water-cluster"}
     plot_accuracy(shown, DOCS / "figures" / "accuracy_benchmark.png")
+    for step in STEPS:
+        plot_accuracy(
+            _results(f"compositions/compositions_accuracy_{step}*.json"),
+            DOCS / "figures" / f"compositions_accuracy_{step}.png",
+        )

@@ -1,13 +1,8 @@
 """What each variable of the energy mode's step programs means, by the stage of the step that owns it.
 
-Hand-written: the one place for these meanings. ``python -m tools.reports``
-adds who writes each variable (read from the programs themselves) and writes the tables
-into docs/energy_program.md; tests/test_energy_program.py checks that every global and
-per-DOF variable of the order-2 and order-4 programs has exactly one entry here and that no
-entry is left over.
-
-A name may stand for several variables: ``<i>`` for a stage number of the composition,
-``<series>`` for ``d0`` or ``slope`` (the two series the predictor fits).
+Hand-written (:mod:`tools.reports.energy_program` adds who writes each; tests/test_energy_program.py
+checks that every variable has exactly one entry). A name may stand for several variables:
+``<i>`` for a stage number of the composition, ``<series>`` for ``d0`` or ``slope``.
 """
 
 from __future__ import annotations

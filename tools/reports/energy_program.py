@@ -24,7 +24,6 @@ from pathlib import Path
 import openmm as mm
 
 import openmm_alphaprk.integrators as integrators_package
-from openmm_alphaprk._units import InputError
 from openmm_alphaprk.integrators.energy_mode import AlphaRattleEnergyIntegrator
 from tools.reports import markdown
 from tools.reports.energy_globals import MEANINGS, PER_DOF_MEANINGS, PLACEHOLDERS, STAGES
@@ -37,17 +36,12 @@ ORDERS = (2, 4)
 HELPERS = ("_add_sum", "_add_count_force_evaluation")
 
 _INTEGRATORS = Path(integrators_package.__file__).parent
-_ADD = (
-    "addComputeGlobal",
-    "addComputePerDof",
-    "addComputeSum",
-    "addConstrainPositions",
-    "addConstrainVelocities",
-    "addUpdateContextState",
-    "beginIfBlock",
-    "beginWhileBlock",
-    "endBlock",
-)
+#: The methods of a CustomIntegrator that add a computation (or open or close a block).
+_ADD = [
+    n
+    for n in dir(mm.CustomIntegrator)
+    if n.startswith(("addCompute", "addConstrain", "addUpdate", "begin", "end"))
+]
 _BEGIN = (mm.CustomIntegrator.IfBlockStart, mm.CustomIntegrator.WhileBlockStart)
 _WRITES_GLOBAL = (mm.CustomIntegrator.ComputeGlobal, mm.CustomIntegrator.ComputeSum)
 #: How the outline names the computations that assign no variable.
@@ -56,15 +50,6 @@ _ACTIONS = {
     mm.CustomIntegrator.ConstrainVelocities: "*constrain velocities*",
     mm.CustomIntegrator.UpdateContextState: "*update context state*",
 }
-
-
-def make_energy_integrator(order: int, cls: type = AlphaRattleEnergyIntegrator) -> mm.CustomIntegrator:
-    """Return the energy mode of ``order`` (2: one step), made by ``cls`` (h = 2 fs, the defaults)."""
-    composition = None if order == 2 else order
-    try:
-        return cls(0.002, order=composition)
-    except InputError:  # the constructor of an older API: AlphaRattleIntegrator(h, "energy", ...)
-        return cls(0.002, "energy", order=composition)
 
 
 @dataclass(frozen=True)
@@ -76,14 +61,14 @@ class Program:
     pieces: list[tuple[str, ...]]
 
     def globals(self) -> list[str]:
-        return [
-            self.integrator.getGlobalVariableName(i) for i in range(self.integrator.getNumGlobalVariables())
-        ]
+        """Return the program's global variables."""
+        names = self.integrator.getGlobalVariableName
+        return [names(i) for i in range(self.integrator.getNumGlobalVariables())]
 
     def per_dof(self) -> list[str]:
-        return [
-            self.integrator.getPerDofVariableName(i) for i in range(self.integrator.getNumPerDofVariables())
-        ]
+        """Return the program's per-DOF variables (besides x, v, f)."""
+        names = self.integrator.getPerDofVariableName
+        return [names(i) for i in range(self.integrator.getNumPerDofVariables())]
 
     def writer(self, index: int) -> str:
         """Return the piece that wrote computation ``index``: the innermost; a sum: the one asking for it."""
@@ -123,10 +108,9 @@ def record_program(order: int) -> Program:
 
         return add_recorded
 
-    cls = type(
-        AlphaRattleEnergyIntegrator.__name__, (AlphaRattleEnergyIntegrator,), {n: recording(n) for n in _ADD}
-    )
-    integrator = make_energy_integrator(order, cls)
+    recorder = {name: recording(name) for name in _ADD}
+    cls = type(AlphaRattleEnergyIntegrator.__name__, (AlphaRattleEnergyIntegrator,), recorder)
+    integrator = cls(0.002, order=None if order == 2 else order)  # h = 2 fs, the defaults
     steps = [integrator.getComputationStep(i) for i in range(integrator.getNumComputations())]
     if len(recorded) != len(steps):
         raise RuntimeError(f"recorded {len(recorded)} computations of {len(steps)}: a piece added one unseen")
@@ -145,19 +129,17 @@ def program_writers(program: Program) -> dict[str, list[str]]:
 
 
 # ------------------------------------------------------------------ the Python side
-def _classes(cls: type) -> list[type]:
-    return [c for c in cls.__mro__ if c.__module__.startswith("openmm_alphaprk.")]
-
-
 def _functions(cls: type) -> list[tuple[type, ast.FunctionDef]]:
+    """Return the methods of ``cls`` and its bases in this package, each with its class, as parsed."""
     found = []
-    for c in _classes(cls):
+    for c in [c for c in cls.__mro__ if c.__module__.startswith("openmm_alphaprk.")]:
         (node,) = ast.parse(inspect.getsource(c)).body
         found += [(c, f) for f in node.body if isinstance(f, ast.FunctionDef)]
     return found
 
 
 def _label(function: ast.FunctionDef) -> str:
+    """Name a method as the page does: ``setter `name``` or ```name()```."""
     setter = any(isinstance(d, ast.Attribute) and d.attr == "setter" for d in function.decorator_list)
     return f"setter `{function.name}`" if setter else f"`{function.name}()`"
 
@@ -216,6 +198,7 @@ def python_writers(cls: type = AlphaRattleEnergyIntegrator) -> dict[str, list[st
 
 # ------------------------------------------------------------------ the meanings
 def _pattern(name: str) -> re.Pattern:
+    """Return the pattern of the variables a meaning's name stands for (its placeholders expanded)."""
     text = re.escape(name)
     for placeholder, expression in PLACEHOLDERS.items():
         text = text.replace(re.escape(placeholder), f"(?:{expression})")
@@ -244,47 +227,30 @@ def _who(names: list[str], by_order: dict[int, dict[str, list[str]]], python: di
     return "; ".join(parts) or "—"
 
 
-def _cell(text: str) -> str:
-    """Return ``text`` for a table cell: a ``|`` (|H − E_ref|) escaped, not a column."""
-    return text.replace("|", "\\|")
+def variables_table(
+    title: str, meanings: dict[str, str], variables: dict[int, list[str]], writers, python
+) -> str:
+    """Return the table of ``meanings``: each entry, the orders that have it, its meaning, its writers.
 
-
-def _in(names: list[str], variables: dict[int, list[str]]) -> str:
-    orders = [str(o) for o in ORDERS if any(n in variables[o] for n in names)]
-    return ", ".join(orders)
-
-
-def globals_tables(programs: dict[int, Program]) -> str:
-    """Return the globals of the programs, a table per stage in the order the step runs them."""
-    writers = {order: program_writers(p) for order, p in programs.items()}
-    python = python_writers()
-    variables = {order: p.globals() for order, p in programs.items()}
+    ``variables`` and ``writers`` are each program's variables and :func:`program_writers`, by
+    order; ``python`` is :func:`python_writers`. A meaning's ``|`` (|H − E_ref|) is escaped.
+    """
     every = sorted({v for names in variables.values() for v in names})
-    sections = []
-    for stage, meanings in MEANINGS.items():
-        rows = []
-        for row, names in rows_of(every, meanings).items():
-            rows.append(
-                [f"`{row}`", _in(names, variables), _cell(meanings[row]), _who(names, writers, python)]
-            )
-        table = markdown.markdown_table(["global", "order", "meaning", "written by"], rows)
-        sections.append(f"### {stage}\n\n{STAGES[stage]}\n\n{table}")
-    return "\n\n".join(sections)
-
-
-def per_dof_table(programs: dict[int, Program]) -> str:
-    """Return the per-DOF variables of the programs (besides x, v, f) and who writes them."""
-    writers = {order: program_writers(p) for order, p in programs.items()}
-    variables = {order: p.per_dof() for order, p in programs.items()}
     rows = [
-        [f"`{name}`", _in([name], variables), _cell(meaning), _who([name], writers, {})]
-        for name, meaning in PER_DOF_MEANINGS.items()
+        [
+            f"`{row}`",
+            ", ".join(str(o) for o in ORDERS if any(n in variables[o] for n in names)),
+            meanings[row].replace("|", "\\|"),
+            _who(names, writers, python),
+        ]
+        for row, names in rows_of(every, meanings).items()
     ]
-    return markdown.markdown_table(["per-DOF variable", "order", "meaning", "written by"], rows)
+    return markdown.markdown_table([title, "order", "meaning", "written by"], rows)
 
 
 # ------------------------------------------------------------------ the outline
 def _opens_blocks(program: Program) -> set[str]:
+    """Return the pieces that open or close a block of ``program``."""
     return {
         program.pieces[i][-1]
         for i, (kind, _, _) in enumerate(program.steps)
@@ -352,12 +318,24 @@ def outline(program: Program) -> str:
 
 
 # ------------------------------------------------------------------ the page
+def render() -> dict[Path, dict[str, str]]:
+    """Return the page's generated blocks, by page and name."""
+    return {PAGE: render_blocks()}
+
+
 def render_blocks(programs: dict[int, Program] | None = None) -> dict[str, str]:
     """Return the page's generated blocks, by name."""
     programs = programs or {order: record_program(order) for order in ORDERS}
+    writers = {order: program_writers(p) for order, p in programs.items()}
+    python, variables = python_writers(), {order: p.globals() for order, p in programs.items()}
+    stages = [
+        f"### {stage}\n\n{STAGES[stage]}\n\n{variables_table('global', meanings, variables, writers, python)}"
+        for stage, meanings in MEANINGS.items()
+    ]
+    per_dof = {order: p.per_dof() for order, p in programs.items()}
     blocks = {f"outline-order{order}": outline(p) for order, p in programs.items()}
-    blocks["globals"] = globals_tables(programs)
-    blocks["per-dof"] = per_dof_table(programs)
+    blocks["globals"] = "\n\n".join(stages)
+    blocks["per-dof"] = variables_table("per-DOF variable", PER_DOF_MEANINGS, per_dof, writers, {})
     counts = "; ".join(
         f"order {order}: {len(p.globals())} globals, {len(p.per_dof())} per-DOF variables, "
         f"{len(p.steps)} computations"

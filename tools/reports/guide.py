@@ -17,7 +17,7 @@ from openmm_alphaprk.observables import drift_text
 from openmm_alphaprk.platforms import energy_noise
 from tools.reports.markdown import Column, table
 from tools.reports.numbers import percent, sig, times, tolerance, two, whole_percent
-from tools.reports.sources import DATA, DOCS, ROOT, Source, load, pick, provenance_line, source
+from tools.reports.sources import DATA, DOCS, ROOT, Source, link, load, pick, provenance_line, source
 
 SYSTEMS = ("tip3p-2nm", "tip3p-3nm", "villin")
 #: The accuracy runs at 2 fs (the water boxes, villin), all rows of a system in one run.
@@ -30,11 +30,6 @@ HORIZON_FS = 100.0
 LONG_RUN = "long_runs/cuda_h100/long_sequential_mixed.json"
 LONG_RUN_DHFR = "long_runs/cuda_h100/cost_dhfr_2fs.json"
 GPU_COST = ("compositions/cuda_h100/cost_6.json", "compositions/cuda_h100/cost_9.json")
-
-
-def per_system(values, show=sig) -> str:
-    """Write the values of the systems in order, ``a / b / c``."""
-    return " / ".join(show(v) for v in values)
 
 
 # ------------------------------------------------------------------ the accuracy runs at 2 fs
@@ -50,6 +45,7 @@ def accuracy() -> tuple[dict[str, list[dict]], list[Source]]:
 
 
 def position(row: dict) -> float:
+    """Return a row's RMS position error at the guide's horizon."""
     (error,) = [h["position_rms"] for h in row["horizons"] if h["time_fs"] == HORIZON_FS]
     return error
 
@@ -64,35 +60,28 @@ def gain(rows: list[dict], name: str) -> float:
 def accuracy_columns(every: bool) -> list[Column]:
     """Return the columns of the accuracy tables: one per system for each measure, or the three joined."""
 
-    def measure(title, value, show):
-        if every:
+    def measure(title, value, show=sig, joined=not every):
+        if not joined:
             return [Column(f"{title}, {s}", lambda r, s=s: show(value(r[s], r["name"]))) for s in SYSTEMS]
-        return [Column(title, lambda r: per_system([value(r[s], r["name"]) for s in SYSTEMS], show))]
+        return [Column(title, lambda r: " / ".join(show(value(r[s], r["name"])) for s in SYSTEMS))]
 
-    return [
-        Column("integrator", lambda r: f"`{r['name']}`"),
-        *measure(
-            "evaluations/step",
-            lambda rows, n: pick(rows, n)["force_evaluations_per_step"],
-            lambda v: f"{v:.3g}",
-        ),
-        *measure("RMS(H − E_ref) kJ/mol", lambda rows, n: pick(rows, n)["rms_residual"], sig),
-        *measure(f"position error at {HORIZON_FS:g} fs (nm)", lambda rows, n: position(pick(rows, n)), sig),
+    def field(key: str):
+        return lambda rows, name: pick(rows, name)[key]
+
+    columns = [
+        Column("integrator", "`{name}`"),
+        *measure("evaluations/step", field("force_evaluations_per_step"), "{:.3g}".format),
+        *measure("RMS(H − E_ref) kJ/mol", field("rms_residual")),
+        *measure(f"position error at {HORIZON_FS:g} fs (nm)", lambda rows, n: position(pick(rows, n))),
         *measure("× below RATTLE at equal evaluations", gain, times),
-        *(
-            [
-                Column(
-                    "CPU time / RATTLE's",
-                    lambda r: per_system([pick(r[s], r["name"])["time_ratio"] for s in SYSTEMS], two),
-                )
-            ]
-            if every
-            else []
-        ),
     ]
+    if every:
+        columns += measure("CPU time / RATTLE's", field("time_ratio"), two, joined=True)
+    return columns
 
 
-def accuracy_table(names: tuple[str, ...], every: bool, link: str) -> str:
+def accuracy_table(names: tuple[str, ...]) -> str:
+    """Render the accuracy runs' table of the integrators ``names``, one column per system and measure."""
     rows, sources = accuracy()
     caption = provenance_line(
         sources,
@@ -100,9 +89,8 @@ def accuracy_table(names: tuple[str, ...], every: bool, link: str) -> str:
         f"start, every row of a system in one run; systems {' / '.join(SYSTEMS)}; position error: RMS "
         "distance per atom to RATTLE at h/64; equal evaluations: RATTLE at h/k, k the row's evaluations "
         "rounded up",
-        link,
     )
-    return table([{"name": n, **rows} for n in names], accuracy_columns(every), caption)
+    return table([{"name": n, **rows} for n in names], accuracy_columns(True), caption)
 
 
 # ------------------------------------------------------------------ the README's long runs
@@ -123,20 +111,17 @@ def _maybe(rows: list[dict], name: str) -> dict | None:
 def gpu_cost_table() -> str:
     """Time per force evaluation against RATTLE's on an H100 at 21k and 72k atoms."""
     runs = [load(path) for path in GPU_COST]
-    names = ("alpha4=0", "alpha6=0", "rattle4+rescale", "energy4")
-    columns = [Column("integrator", lambda n: f"`{n}`")] + [
+    columns = [Column("integrator", "`{}`".format)] + [
         Column(f"{_atoms(data)} atoms", lambda n, d=data: two(pick(d["rows"], n)["ratio_per_evaluation"]))
         for data, _ in runs
     ]
-    caption = provenance_line(
-        [s for _, s in runs],
-        "`alphaprk bench cost` on TIP3P boxes, H100, CUDA mixed, 2 fs; time per force evaluation / RATTLE's",
-        "data/",
-    )
-    return table(names, columns, caption)
+    run = "`alphaprk bench cost` on TIP3P boxes, H100, CUDA mixed, 2 fs; time per force evaluation / RATTLE's"
+    names = ("alpha4=0", "alpha6=0", "rattle4+rescale", "energy4")
+    return table(names, columns, provenance_line([s for _, s in runs], run))
 
 
 def _atoms(data: dict) -> str:
+    """Return the atoms of a ``bench cost`` run, from its header in older files."""
     atoms = data.get("atoms") or int(re.search(r"(\d+) atoms", data["header"]).group(1))
     return f"{atoms:,}"
 
@@ -149,15 +134,12 @@ def rescale_interval_table() -> str:
     """Render the cost and energy of ``rattle+rescale@N`` beside RATTLE's, from one run of each."""
     data, found = load(RESCALE_INTERVAL)
     cost = {box: entry["rows"] for box, entry in data["single_thread_cpu_time"].items()}
-    runs = data["energy"]["runs"]
 
-    def cost_cell(box: str):
-        def cell(run: dict) -> str:
-            row = pick(cost[box], run["name"])
-            ratio = row["ratio_to_rattle"]
-            return f"1 ({row['cpu_ms_per_step']:.3g} ms)" if run["name"] == "rattle" else f"{ratio:.2f}×"
-
-        return cell
+    def cost_cell(rows: list[dict], name: str) -> str:
+        row = pick(rows, name)
+        return (
+            f"1 ({row['cpu_ms_per_step']:.3g} ms)" if name == "rattle" else f"{row['ratio_to_rattle']:.2f}×"
+        )
 
     def drift(run: dict) -> str:
         text = f"{sig(run['drift_per_dof'])} ± {sig(run['drift_per_dof_standard_error'])}"
@@ -168,7 +150,10 @@ def rescale_interval_table() -> str:
     at = "at_rescaling_steps"
     columns = [
         Column("", lambda r: "RATTLE" if r["name"] == "rattle" else f"`{r['name']}`"),
-        *(Column(f"cost {box}", cost_cell(box)) for box in cost),
+        *(
+            Column(f"cost {box}", lambda r, rows=rows: cost_cell(rows, r["name"]))
+            for box, rows in cost.items()
+        ),
         Column("RMS(H − E_ref) kJ/mol, every step", lambda r: sig(r["rms_residual"])),
         Column("max \\|H − E_ref\\|", lambda r: sig(r["max_abs_residual"])),
         Column(
@@ -177,15 +162,13 @@ def rescale_interval_table() -> str:
         ),
         Column("drift kJ/mol/ns/DOF", drift),
     ]
-    caption = provenance_line(
-        [found],
+    run = (
         f"`python -m openmm_alphaprk.benchmarks.rescale_interval`, {data['platform']} platform, h = 2 fs; "
         f"cost: single-thread process time per step, {data['rounds_single_thread_cpu_time']} interleaved "
         f"rounds, median, ratio to RATTLE in the same run; energy: {data['energy']['box']} from its "
-        f"shipped start, {data['energy']['picoseconds']:g} ps, H read after every step",
-        "data/",
+        f"shipped start, {data['energy']['picoseconds']:g} ps, H read after every step"
     )
-    return table(runs, columns, caption)
+    return table(data["energy"]["runs"], columns, provenance_line([found], run))
 
 
 # ------------------------------------------------------------------ the order-2 energy mode
@@ -203,49 +186,26 @@ def order2_table() -> str:
     rows = []
     for system in ("tip3p-3nm", "villin"):
         energy = pick(systems[system]["rows"], "energy", labelled="α-RATTLE energy")
-        rattle = pick(systems[system]["rows"], "rattle")
-        rows.append(
-            [
-                system,
-                "every trial",
-                percent(energy["fraction_fallen_back"]),
-                f"{energy['force_evaluations_per_step']:.2g}",
-                f"{energy['rms_residual']:.3g}",
-                f"{rattle['rms_residual']:.3g}",
-            ]
-        )
+        rattle = pick(systems[system]["rows"], "rattle")["rms_residual"]
+        rows.append({"system": system, "trials": "every trial", **energy, "rattle": rattle})
     for (data, _), path in zip(budgets, ORDER2_BUDGET):
         two_trials = data["max_trials=2"]
-        rows.append(
-            [
-                path.split("_")[-1].removesuffix(".json"),
-                "2 trials",
-                percent(two_trials["totals"]["fraction_fallen_back"]),
-                f"{two_trials['force_evaluations_per_step']:.2g}",
-                f"{two_trials['rms']:.3g}",
-                f"{data['rattle']['rms']:.3g}",
-            ]
-        )
+        two_trials = {**two_trials, **two_trials["totals"], "rms_residual": two_trials["rms"]}
+        system = path.split("_")[-1].removesuffix(".json")
+        rows.append({**two_trials, "system": system, "trials": "2 trials", "rattle": data["rattle"]["rms"]})
     columns = [
-        Column(t, lambda r, i=i: r[i])
-        for i, t in enumerate(
-            [
-                "system",
-                "trials per step",
-                "steps fallen back",
-                "evaluations/step",
-                "RMS(H − E_ref) kJ/mol",
-                "RATTLE's RMS",
-            ]
-        )
+        Column("system", "{system}"),
+        Column("trials per step", "{trials}"),
+        Column("steps fallen back", lambda r: percent(r["fraction_fallen_back"])),
+        Column("evaluations/step", "{force_evaluations_per_step:.2g}"),
+        Column("RMS(H − E_ref) kJ/mol", "{rms_residual:.3g}"),
+        Column("RATTLE's RMS", "{rattle:.3g}"),
     ]
-    caption = provenance_line(
-        [systems_source] + [s for _, s in budgets],
+    run = (
         "`alphaprk bench energy`, CPU platform, 2 fs from each system's start (500 steps; with 2 trials: "
-        "1,000 steps of tip3p-2nm and 300 of villin), the controller of its day",
-        "data/",
+        "1,000 steps of tip3p-2nm and 300 of villin), the controller of its day"
     )
-    return table(rows, columns, caption)
+    return table(rows, columns, provenance_line([systems_source] + [s for _, s in budgets], run))
 
 
 # ------------------------------------------------------------------ platforms.md
@@ -265,21 +225,24 @@ def noise_table() -> str:
     runs = [load(path) for path in NOISE]
     measured = {(e["atoms"], spec): v for data, _ in runs for e in data for spec, v in e["std"].items()}
     atoms = sorted({n for n, _ in measured})
-    columns = [Column("atoms", lambda n: f"{n:,}")]
-    for title, spec, precision in NOISE_COLUMNS:
-        columns.append(Column(title, lambda n, s=spec, p=precision: _noise(measured.get((n, s)), n, p)))
-    columns.append(Column("model σ, mixed", lambda n: two(energy_noise(n, "mixed"))))
-    caption = provenance_line(
-        [s for _, s in runs],
+    columns = [
+        Column("atoms", "{:,}".format),
+        *(
+            Column(t, lambda n, s=spec, p=p: _noise(measured.get((n, s)), n, p))
+            for t, spec, p in NOISE_COLUMNS
+        ),
+        Column("model σ, mixed", lambda n: two(energy_noise(n, "mixed"))),
+    ]
+    run = (
         "`python -m openmm_alphaprk.benchmarks.energy_noise`, 10 states per box: σ (kJ/mol) of the "
         "potential energy against double precision (CUDA double on the H100, Reference on the CPU "
-        "machine, where OpenCL is pocl), and in brackets σ over the model's for its precision",
-        "data/",
+        "machine, where OpenCL is pocl), and in brackets σ over the model's for its precision"
     )
-    return table(atoms, columns, caption)
+    return table(atoms, columns, provenance_line([s for _, s in runs], run))
 
 
 def _noise(value: float | None, atoms: int, precision: str) -> str:
+    """Return σ and, in brackets, σ over the model's for ``precision``; empty where not measured."""
     return "" if value is None else f"{two(value)} ({two(value / energy_noise(atoms, precision))})"
 
 
@@ -300,17 +263,13 @@ def pytest_counts(path: str) -> dict[str, int]:
 
 
 def h100_tests_table() -> str:
-    columns = [
-        Column("log", lambda p: f"[{p.split('/')[-1]}](data/{p})"),
-        Column("day", lambda p: source(p).date),
-    ]
-    columns += [
+    """Render pytest's counts of each test run on the H100, from its log."""
+    columns = [Column("log", link), Column("day", lambda p: source(p).date)] + [
         Column(w, lambda p, w=w: str(pytest_counts(p).get(w, 0)))
         for w in ("passed", "failed", "skipped", "deselected")
     ]
-    return table(
-        H100_LOGS, columns, "pytest's summary line of each run on the H100 (CUDA 13 wheel, OpenMM 8.6.1):"
-    )
+    caption = "pytest's summary line of each run on the H100 (CUDA 13 wheel, OpenMM 8.6.1):"
+    return table(H100_LOGS, columns, caption)
 
 
 SYNC = ("platforms/cuda_h100/rescale_sync_cost.json", "platforms/rescale_sync_cost_cpu.json")
@@ -337,7 +296,6 @@ def sync_cost_table() -> str:
         [s for _, s in runs],
         "`python -m openmm_alphaprk.benchmarks.rescale_sync_cost`: time per step "
         "against a RATTLE `CustomIntegrator` (H100: CUDA mixed; CPU: shared with other jobs)",
-        "data/",
     )
     return table(SYNC_VARIANTS, columns, caption)
 
@@ -374,32 +332,25 @@ def rescale_cost_table() -> str:
 
         return cell
 
-    def rounds(r):
-        return re.search(r"median of ([^;]+)", r["header"]).group(1)
-
     def platform(r):
         return r["header"].split("platform ")[1].split(";")[0].split(", precision single (the CPU")[0]
 
     runs = [{**load(p)[0], "path": p} for p in RESCALE_COST]
     columns = [
-        Column("data", lambda r: f"[{r['path'].split('/')[-1]}](data/{r['path']})"),
+        Column("data", lambda r: link(r["path"])),
         Column("day", lambda r: source(r["path"]).date),
         Column("platform", platform),
-        Column("atoms", lambda r: _atoms(r)),
-        Column("timing", rounds),
+        Column("atoms", _atoms),
+        Column("timing", lambda r: re.search(r"median of ([^;]+)", r["header"]).group(1)),
         Column("every step", ratio("rattle+rescale")),
         Column("every 10th", ratio("rattle+rescale@10")),
         Column("every 100th", ratio("rattle+rescale@100")),
         Column("`rattle4+rescale` / `alpha4=0`", ratio("rattle4+rescale", "alpha4=0")),
         Column("note", lambda r: r.get("note", "")),
     ]
-    machines = sorted({source(p).machine for p in RESCALE_COST})
-    return table(
-        runs,
-        columns,
-        "RATTLE + rescaling's time per step over RATTLE's in the same run of "
-        f"`alphaprk bench cost`; {' and '.join(machines)}:",
-    )
+    machines = " and ".join(sorted({source(p).machine for p in RESCALE_COST}))
+    caption = "RATTLE + rescaling's time per step over RATTLE's in the same run of `alphaprk bench cost`"
+    return table(runs, columns, f"{caption}; {machines}:")
 
 
 # ------------------------------------------------------------------ smooth_forces.md
@@ -411,39 +362,34 @@ DIAGNOSIS = "smooth_forces/energy_tip3p-2nm_300.json"
 
 
 def pme_table() -> str:
+    """Render the PME tolerance runs: energy error and cost of each integrator at each Ewald tolerance."""
     data, found = load(PME)
     villin, villin_source = load(PME_VILLIN)
     runs = {float(k): v for k, v in data.items() if isinstance(v, dict)}
     villin_ms = {float(k): v["rows"][0]["ms_per_step"] for k, v in villin.items() if isinstance(v, dict)}
     tightest = min(runs)
-    rows = []
-    for tol in sorted(runs, reverse=True):
-        rattle = pick(runs[tol]["rows"], "rattle")
-        for row in runs[tol]["rows"]:
-            rows.append(
-                {
-                    **row,
-                    "tol": tol,
-                    "pme": runs[tol]["pme"],
-                    "rattle": rattle,
-                    "tight": pick(runs[tightest]["rows"], row["integrator"]),
-                    "villin": villin_ms[tol] / villin_ms[tightest] if row["integrator"] == "rattle" else None,
-                }
-            )
+    rows = [
+        {
+            **row,
+            "tol": tol,
+            "pme": runs[tol]["pme"],
+            "rattle": pick(runs[tol]["rows"], "rattle"),
+            "tight": pick(runs[tightest]["rows"], row["integrator"]),
+            "villin": villin_ms[tol] / villin_ms[tightest] if row["integrator"] == "rattle" else None,
+        }
+        for tol in sorted(runs, reverse=True)
+        for row in runs[tol]["rows"]
+    ]
+    fell = "fraction_fallen_back"
     columns = [
         Column("Ewald tolerance", lambda r: tolerance(r["tol"])),
-        Column("PME", lambda r: r["pme"]),
+        Column("PME", "{pme}"),
         Column("integrator", lambda r: THEN[r["integrator"]]),
-        Column("RMS(H − E_ref) kJ/mol", lambda r: f"{r['rms_residual']:.3g}"),
+        Column("RMS(H − E_ref) kJ/mol", "{rms_residual:.3g}"),
         Column("RATTLE's RMS / this", lambda r: f"{r['rattle']['rms_residual'] / r['rms_residual']:.3g}"),
-        Column("evaluations/step", lambda r: f"{r['force_evaluations_per_step']:.2f}"),
-        Column(
-            "fallen back",
-            lambda r: (
-                whole_percent(r["fraction_fallen_back"]) if r.get("fraction_fallen_back", 0) > 0 else "–"
-            ),
-        ),
-        Column("ms/step", lambda r: f"{r['ms_per_step']:.1f}"),
+        Column("evaluations/step", "{force_evaluations_per_step:.2f}"),
+        Column("fallen back", lambda r: whole_percent(r[fell]) if r.get(fell, 0) > 0 else "–"),
+        Column("ms/step", "{ms_per_step:.1f}"),
         Column("time / RATTLE's", lambda r: f"{r['ms_per_step'] / r['rattle']['ms_per_step']:.2f}"),
         Column(
             f"time / at {tolerance(tightest)}",
@@ -454,35 +400,29 @@ def pme_table() -> str:
             lambda r: "" if r["villin"] is None else f"{r['villin']:.2f}",
         ),
     ]
-    caption = provenance_line(
-        [found, villin_source],
+    run = (
         "`python -m openmm_alphaprk.benchmarks.pme_tolerance`: "
         f"{data['steps']} steps of 2 fs per row from the shipped {data['system']} start (villin: "
         "RATTLE's cost alone), CPU platform, load average "
         f"{' / '.join(f'{v:.1f}' for v in data['load'])} at its start; ms/step: the fastest of the "
         "interleaved rounds. † That day the order-4 composition was the triple jump: `alpha4=0` is today's "
-        "`alpha4=0:triple-jump`, `energy4` the energy mode of that day on it",
-        "data/",
+        "`alpha4=0:triple-jump`, `energy4` the energy mode of that day on it"
     )
-    return table(rows, columns, caption)
+    return table(rows, columns, provenance_line([found, villin_source], run))
 
 
 def diagnosis_table() -> str:
+    """Render the share of the energy modes' steps that ended outside the tolerance with smooth forces."""
     data, found = load(DIAGNOSIS)
     rows = [{"name": n, **pick(data["tip3p-2nm"]["rows"], n)} for n in ("energy", "energy4")]
     columns = [
-        Column("integrator", lambda r: f"`{r['name']}`"),
+        Column("integrator", "`{name}`"),
         Column(
             "steps ending outside the tolerance", lambda r: whole_percent(1 - r["fraction_within_tolerance"])
         ),
     ]
-    caption = provenance_line(
-        [found],
-        "`alphaprk bench energy` on tip3p-2nm, CPU platform, smooth forces, "
-        "300 steps of 2 fs from the shipped start",
-        "data/",
-    )
-    return table(rows, columns, caption)
+    run = "`alphaprk bench energy` on tip3p-2nm, CPU platform, smooth forces, 300 steps of 2 fs"
+    return table(rows, columns, provenance_line([found], f"{run} from the shipped start"))
 
 
 # ------------------------------------------------------------------ own_files.md and driver.md
@@ -511,22 +451,16 @@ def peptide_table(paths: tuple[str, ...]) -> str:
                 }
             )
     first = rows[0]
+
+    def divisor(r: dict) -> str | None:
+        return r["name"].split("/")[1] if " h/" in r["name"] else None
+
+    rms = "rms_residual"
     columns = [
-        Column("files", lambda r: r["files"]),
-        Column(
-            "row",
-            lambda r: f"RATTLE at h/{r['name'].split('/')[1]}" if " h/" in r["name"] else f"`{r['name']}`",
-        ),
-        Column(
-            "evaluations/step",
-            lambda r: (
-                r["name"].split("/")[1] if " h/" in r["name"] else f"{r['force_evaluations_per_step']:.3g}"
-            ),
-        ),
-        Column(
-            "RMS(H − E_ref) kJ/mol",
-            lambda r: f"{r['rms_residual']:.3g}" if r["rms_residual"] >= 1 else sig(r["rms_residual"]),
-        ),
+        Column("files", "{files}"),
+        Column("row", lambda r: f"RATTLE at h/{divisor(r)}" if divisor(r) else f"`{r['name']}`"),
+        Column("evaluations/step", lambda r: divisor(r) or f"{r['force_evaluations_per_step']:.3g}"),
+        Column("RMS(H − E_ref) kJ/mol", lambda r: f"{r[rms]:.3g}" if r[rms] >= 1 else sig(r[rms])),
         Column(
             "drift kJ/mol/ns/DOF", lambda r: drift_text(r["drift_per_dof"], r["drift_per_dof_standard_error"])
         ),
@@ -539,26 +473,25 @@ def peptide_table(paths: tuple[str, ...]) -> str:
             lambda r: two(r["verdict"]["position_gain"]) if r["verdict"] else "",
         ),
     ]
-    caption = provenance_line(
-        sources,
+    run = (
         f"`alphaprk compare`: {first['platform']} platform, {first['timestep_fs']:g} fs, "
-        f"{first['steps']:,} steps ({first['simulated_ps']:g} ps) per row from the same start",
-        "data/",
+        f"{first['steps']:,} steps ({first['simulated_ps']:g} ps) per row from the same start"
     )
-    return table(rows, columns, caption)
+    return table(rows, columns, provenance_line(sources, run))
 
 
 REPORTER_COST = "driver/reporter_cost.json"
 
 
 def reporter_cost_table() -> str:
+    """Render what a reporter costs the driver per step, by integrator and reporting interval."""
     data, found = load(REPORTER_COST)
     s = data["settings"]
     columns = [
-        Column("integrator", lambda r: r["integrator"]),
-        Column("reporting", lambda r: r["reporting"]),
-        Column("steps/s (median)", lambda r: f"{r['steps_per_s']:.1f}", "---:"),
-        Column("× no reporter", lambda r: f"{r['ratio_to_no_reporter']:.3f}", "---:"),
+        Column("integrator", "{integrator}"),
+        Column("reporting", "{reporting}"),
+        Column("steps/s (median)", "{steps_per_s:.1f}", "---:"),
+        Column("× no reporter", "{ratio_to_no_reporter:.3f}", "---:"),
         Column("one report (µs)", lambda r: "–" if r["report_us"] is None else two(r["report_us"]), "---:"),
         Column(
             "one report / step",
@@ -566,17 +499,15 @@ def reporter_cost_table() -> str:
             "---:",
         ),
     ]
-    caption = provenance_line(
-        [found],
+    run = (
         "`python -m openmm_alphaprk.benchmarks.reporter_cost "
         f"--threads {s['threads']} --rounds {s['rounds']}`: "
         f"{s['platform']} platform, `{s['system']}` ({s['atoms']:,} atoms), {s['timestep_fs']:g} fs, "
         f"{s['rounds']} interleaved rounds of {s['energy4_steps']} energy4 / {s['rattle_steps']} RATTLE "
         f"steps per row; one report timed alone (median of {s['repeats']:,}); load average "
-        f"{s['load'][0]:.1f}",
-        "data/",
+        f"{s['load'][0]:.1f}"
     )
-    return table(data["rows"], columns, caption)
+    return table(data["rows"], columns, provenance_line([found], run))
 
 
 # ------------------------------------------------------------------ the pages
@@ -606,11 +537,10 @@ def readme_block() -> str:
         "[the integrators](docs/integrators.md#which-integrator-for-which-job), "
         "[long runs](docs/long_runs.md), [data](docs/data/README.md)."
     )
-    accuracy_part = {c.title: c for c in accuracy_columns(False)}
     columns = [
         *(
-            Column(c.title, lambda r, c=c: c.cell(r) if r["measured"] or c.title == "integrator" else "–")
-            for c in accuracy_part.values()
+            Column(c.title, lambda r, c=c: c.text(r) if r["measured"] or c.title == "integrator" else "–")
+            for c in accuracy_columns(False)
         ),
         Column("drift kJ/mol/ns/DOF", lambda r: _drift(r["long"])),
         Column(
@@ -640,12 +570,12 @@ def render() -> dict[Path, dict[str, str]]:
     return {
         ROOT / "README.md": {"which integrator": readme_block()},
         DOCS / "integrators.md": {
-            "which integrator": accuracy_table(GUIDE_NAMES, True, "data/"),
+            "which integrator": accuracy_table(GUIDE_NAMES),
             "gpu in short": gpu_cost_table(),
             "rescale interval": rescale_interval_table(),
         },
         DOCS / "energy_mode.md": {
-            "what it achieves": accuracy_table(("rattle", "rattle4+rescale", "energy4"), True, "data/"),
+            "what it achieves": accuracy_table(("rattle", "rattle4+rescale", "energy4")),
             "order 2": order2_table(),
         },
         DOCS / "platforms.md": {

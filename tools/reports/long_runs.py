@@ -1,7 +1,4 @@
-"""The generated blocks of docs/long_runs.md from docs/data/long_runs/.
-
-Part of ``python -m tools.reports``.
-"""
+"""docs/long_runs.md's generated blocks from docs/data/long_runs/ (part of ``python -m tools.reports``)."""
 
 from __future__ import annotations
 
@@ -37,6 +34,7 @@ GOALS = {"21,384": 1.35, "72,279": 1.25}
 
 
 def _drift(row: dict) -> str:
+    """Write a row's drift ± its error, in bold where resolved, and at its rescaling steps."""
     drift, error = row["drift_per_dof"], row["drift_per_dof_standard_error"]
     if drift != drift:  # NaN: too few samples
         return "-"
@@ -53,38 +51,30 @@ def _drift(row: dict) -> str:
     return text
 
 
-def _speed(row: dict, rattle_ms: float | None) -> list[str]:
-    ms = row["ms_per_step"]
-    if ms != ms:
-        return ["-", "-", "-"]
-    ratio = times(ms / rattle_ms) if rattle_ms else "-"
-    return [f"{ms:.3f}", f"{row['ns_per_day']:,.0f}", ratio]
-
-
 def long_table(path: str, speed: bool = True) -> str:
     """Render one ``bench long`` result: length, drift, RMS, max, worst window, speed of each row."""
     data, source = load(path)
-    ((system, entry),) = data.items()
-    rows = entry["rows"]
-    rattle = next((r["ms_per_step"] for r in rows if r["integrator"] == "rattle"), None)
-    header = ["integrator", "ps", "drift kJ/mol/ns/DOF", "RMS kJ/mol", "max", "worst 10 ps RMS"]
+    ((_, entry),) = data.items()
+    rattle = next((r["ms_per_step"] for r in entry["rows"] if r["integrator"] == "rattle"), None)
+
+    def timed(show):
+        return lambda r: "-" if r["ms_per_step"] != r["ms_per_step"] else show(r)
+
+    columns = [
+        Column("integrator", lambda r: f"`{r['integrator']}`" + ("" if r["complete"] else " (stopped)")),
+        Column("ps", "{simulated_ps:.0f}"),
+        Column("drift kJ/mol/ns/DOF", _drift),
+        Column("RMS kJ/mol", lambda r: sig(r["rms_residual"])),
+        Column("max", lambda r: sig(r["max_abs_residual"])),
+        Column("worst 10 ps RMS", lambda r: sig(r["worst_window_rms"])),
+    ]
     if speed:
-        header += ["ms/step", "ns/day", "× RATTLE"]
-    table = []
-    for row in rows:
-        name = f"`{row['integrator']}`" + ("" if row["complete"] else " (stopped)")
-        cells = [
-            name,
-            f"{row['simulated_ps']:.0f}",
-            _drift(row),
-            sig(row["rms_residual"]),
-            sig(row["max_abs_residual"]),
-            sig(row["worst_window_rms"]),
+        columns += [
+            Column("ms/step", timed("{ms_per_step:.3f}".format_map)),
+            Column("ns/day", timed("{ns_per_day:,.0f}".format_map)),
+            Column("× RATTLE", timed(lambda r: times(r["ms_per_step"] / rattle) if rattle else "-")),
         ]
-        if speed:
-            cells += _speed(row, rattle)
-        table.append(cells)
-    return provenance_line([source], entry["header"]) + "\n\n" + markdown_table(header, table)
+    return table(entry["rows"], columns, provenance_line([source], entry["header"]))
 
 
 def energy_mode_windows(path: str) -> str:
@@ -105,13 +95,10 @@ def energy_mode_windows(path: str) -> str:
         f"1/{times(rattle['rms_residual'] / energy['rms_residual'])}",
         "–" if not fell else f"{100 * fell:.1f} %",
     ]
-    header = [
-        "`energy4`'s windows",
-        "above `alpha4=0`'s RMS",
-        "below 1/50 of RATTLE's",
-        "RMS over the run / RATTLE's",
-        "steps fallen back",
-    ]
+    header = (
+        "`energy4`'s windows | above `alpha4=0`'s RMS | below 1/50 of RATTLE's | RMS over the run / RATTLE's "
+        "| steps fallen back"
+    )
     return markdown_table(header, [cells])
 
 
@@ -127,8 +114,7 @@ def precision_table() -> str:
     table = []
     for name, by_precision in lines.items():
         cells = [f"`{name}`"]
-        for precision in CONCURRENT:
-            row = by_precision.get(precision)
+        for row in (by_precision.get(precision) for precision in CONCURRENT):
             cells += (
                 [f"{row['simulated_ps']:.0f}", _drift(row), sig(row["rms_residual"])] if row else ["-"] * 3
             )
@@ -190,41 +176,35 @@ def openmm_dhfr_table(
     """OpenMM's DHFR benchmark system as OpenMM builds it, 4 fs: ns/day of each integrator."""
     data, source = load(path)
     rattle = next((row["ms_per_step"] for row in data["rows"] if row["integrator"] == "RATTLE"), None)
-    table = [
-        [
-            row["integrator"],
-            f"{row['ms_per_step']:.3f}",
-            sig(row["ns_per_day"]) if row["ns_per_day"] < 100 else f"{row['ns_per_day']:,.0f}",
-            f"{row['ratio_to_langevin_middle']:.2f}",
-            f"{row['ratio_to_verlet']:.2f}",
-            f"{row['ms_per_step'] / rattle:.2f}" if rattle else "-",
-        ]
-        for row in data["rows"]
+    columns = [
+        Column("integrator", "{integrator}"),
+        Column("ms/step", "{ms_per_step:.3f}"),
+        Column(
+            "ns/day", lambda r: sig(r["ns_per_day"]) if r["ns_per_day"] < 100 else f"{r['ns_per_day']:,.0f}"
+        ),
+        Column("× LangevinMiddle", "{ratio_to_langevin_middle:.2f}"),
+        Column("× Verlet", "{ratio_to_verlet:.2f}"),
+        Column("× RATTLE", lambda r: f"{r['ms_per_step'] / rattle:.2f}" if rattle else "-"),
     ]
-    header = ["integrator", "ms/step", "ns/day", "× LangevinMiddle", "× Verlet", "× RATTLE"]
-    run = f"{data['header']}; `{command}`"
-    return provenance_line([source], run) + "\n\n" + markdown_table(header, table)
+    return table(data["rows"], columns, provenance_line([source], f"{data['header']}; `{command}`"))
 
 
 def render() -> dict[Path, dict[str, str]]:
     """Every generated block, by page and block name."""
+    command = f"{OPENMM_DHFR_SCRIPT} --platform CPU --steps 30 --rounds 5"
     blocks = {
         "cuda long": long_table(SEQUENTIAL),
         "cuda energy mode": energy_mode_windows(SEQUENTIAL),
         "cuda precision": precision_table(),
         "cuda cost": cost_table(),
         "openmm dhfr": openmm_dhfr_table(),
-    }
-    if all((DOCS / "data" / path).is_file() for path in OPENMM_DHFR_CPU):
-        command = f"{OPENMM_DHFR_SCRIPT} --platform CPU --steps 30 --rounds 5"
-        blocks["openmm dhfr cpu"] = "\n\n".join(
+        "openmm dhfr cpu": "\n\n".join(
             openmm_dhfr_table(path, command + (" --smooth" if "smooth" in path else ""))
             for path in OPENMM_DHFR_CPU
-        )
-    if (DOCS / "data" / CPU_VILLIN).is_file():
-        blocks["cpu villin long"] = long_table(CPU_VILLIN)
-    if (DOCS / "data" / CPU).is_file():
-        blocks["cpu long"] = long_table(CPU)
-        blocks["cpu energy mode"] = energy_mode_windows(CPU)
-        blocks["cpu energy mode before"] = long_table(CPU_BEFORE) + "\n\n" + energy_mode_windows(CPU_BEFORE)
+        ),
+        "cpu villin long": long_table(CPU_VILLIN),
+        "cpu long": long_table(CPU),
+        "cpu energy mode": energy_mode_windows(CPU),
+        "cpu energy mode before": long_table(CPU_BEFORE) + "\n\n" + energy_mode_windows(CPU_BEFORE),
+    }
     return {PAGE: blocks}

@@ -8,13 +8,9 @@ repository root)::
     python -m tools.reports                   # rewrite the generated blocks (--check: compare)
 
 ``record`` copies the run's ``comparison.json`` to ``docs/data/main_job/`` (run folders
-made relative) and writes ``docs/data/main_job/timing.json``: the wall-clock seconds of the
-command in each run given, the platform, and the command. ``suite`` writes
-``docs/data/main_job/test_suite.json``: the default suite's test count and its time in
-clean-clone runs (pytest's own time) and on a machine's first run (pocl compiling). The
-block ``main job`` of ``README.md`` and ``docs/getting_started.md`` and the block ``test
-suite`` of the latter are rendered from them (:func:`pages`, part of ``python -m
-tools.reports``).
+made relative) with ``timing.json`` (the command's wall-clock seconds in each run, the
+platform); ``suite`` writes ``test_suite.json`` (the default suite's test count, its time
+in clean-clone runs and on a machine's first run, when pocl compiles).
 """
 
 from __future__ import annotations
@@ -32,23 +28,19 @@ from tools.reports.sources import DATA, ROOT, load, provenance_line
 COMPARISON = "main_job/comparison.json"
 TIMING = "main_job/timing.json"
 SUITE = "main_job/test_suite.json"
-BLOCK = "main job"
-SUITE_BLOCK = "test suite"
 
 
 def _sci(value: float) -> str:
+    """Two significant digits, in e notation below 1e-3; "–" for no finite value."""
     if not math.isfinite(value):
         return "–"
     return f"{value:.2g}" if abs(value) >= 1e-3 else f"{value:.1e}"
 
 
 def _minutes(seconds: float) -> str:
+    """Write seconds as ``M min S s``."""
     minutes, rest = divmod(round(seconds), 60)
     return f"{minutes} min {rest} s" if minutes else f"{rest} s"
-
-
-def _drift(row: dict) -> str:
-    return drift_text(row["drift_per_dof"], row["drift_per_dof_standard_error"])
 
 
 def render(link: str = "data/") -> str:
@@ -68,8 +60,8 @@ def render(link: str = "data/") -> str:
         link,
     )
     columns = [
-        Column("integrator", lambda r: f"`{r['integrator']}`"),
-        Column("evaluations/step", lambda r: f"{r['force_evaluations_per_step']:.2f}"),
+        Column("integrator", "`{integrator}`"),
+        Column("evaluations/step", "{force_evaluations_per_step:.2f}"),
         Column("RMS(H − E_ref) kJ/mol", lambda r: _sci(r["rms_residual"])),
         Column(
             "drift kJ/mol/ns/DOF", lambda r: drift_text(r["drift_per_dof"], r["drift_per_dof_standard_error"])
@@ -94,18 +86,18 @@ def render_suite(link: str = "data/") -> str:
     return table([suite], columns, caption)
 
 
-def record_suite(tests: int, seconds: list[float], first_run: float) -> None:
-    """Write the default suite's test count and times to docs/data/main_job/test_suite.json."""
-    suite = {"tests": tests, "wall_seconds": seconds, "first_run_seconds": first_run}
-    (DATA / SUITE).write_text(json.dumps(suite, indent=2) + "\n", encoding="utf-8")
-
-
 def pages() -> dict[Path, dict[str, str]]:
     """Return the generated blocks of the README (the main job) and getting started (and the suite)."""
     return {
-        ROOT / "README.md": {BLOCK: render("docs/data/")},
-        ROOT / "docs" / "getting_started.md": {BLOCK: render(), SUITE_BLOCK: render_suite()},
+        ROOT / "README.md": {"main job": render("docs/data/")},
+        ROOT / "docs" / "getting_started.md": {"main job": render(), "test suite": render_suite()},
     }
+
+
+def _write(path: str, data: dict) -> None:
+    """Write ``data`` as JSON to ``path`` under docs/data/."""
+    (DATA / path).parent.mkdir(parents=True, exist_ok=True)
+    (DATA / path).write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
 
 
 def record(run: Path, seconds: list[float], platform: str, command: str = "alphaprk compare") -> None:
@@ -113,11 +105,8 @@ def record(run: Path, seconds: list[float], platform: str, command: str = "alpha
     comparison = json.loads((run / "comparison.json").read_text(encoding="utf-8"))
     comparison["runs"] = {name: Path(path).name for name, path in comparison["runs"].items()}
     comparison["figure"] = Path(comparison["figure"]).name if comparison.get("figure") else None
-    folder = DATA / "main_job"
-    folder.mkdir(parents=True, exist_ok=True)
-    (folder / "comparison.json").write_text(json.dumps(comparison, indent=2) + "\n", encoding="utf-8")
-    timing = {"command": command, "platform": platform, "wall_seconds": seconds}
-    (folder / "timing.json").write_text(json.dumps(timing, indent=2) + "\n", encoding="utf-8")
+    _write(COMPARISON, comparison)
+    _write(TIMING, {"command": command, "platform": platform, "wall_seconds": seconds})
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -136,7 +125,9 @@ def main(argv: list[str] | None = None) -> int:
         record(args.run, args.seconds, args.platform)
         return 0
     if args.action == "suite":
-        record_suite(args.tests, args.seconds, args.first_run)
+        _write(
+            SUITE, {"tests": args.tests, "wall_seconds": args.seconds, "first_run_seconds": args.first_run}
+        )
         return 0
     parser.print_help()
     return 2

@@ -20,63 +20,46 @@ BLOCK_PATTERN = re.compile(
 )
 
 
-def begin_marker(name: str) -> str:
-    """Return the line that opens the generated block ``name``."""
-    return f"<!-- generated: {name} -->"
+def markdown_table(header: Sequence[str] | str, rows: list[list[str]], aligns: Sequence[str] = ()) -> str:
+    """Render a Markdown table: the header, the alignment line (``---`` by default), one line per row.
 
-
-def end_marker(name: str) -> str:
-    """Return the line that closes the generated block ``name``."""
-    return f"<!-- end generated: {name} -->"
-
-
-def block(name: str, content: str) -> str:
-    """Return the generated block ``name`` holding ``content`` (trailing newlines dropped)."""
-    body = content.rstrip("\n")
-    return f"{begin_marker(name)}\n{body}\n{end_marker(name)}"
-
-
-def markdown_table(header: list[str], rows: list[list[str]]) -> str:
-    """Render a Markdown table: the header, the ``---`` line, one line per row.
-
-    Parameters
-    ----------
-    header
-        The column titles.
-    rows
-        The cells of each row, as text.
-
-    Returns
-    -------
-    str
-        The table, without a trailing newline.
+    ``header`` is the column titles, or the header line as the page writes it (``"row | ps | RMS"``).
     """
 
-    def line(cells: list[str]) -> str:
+    def line(cells: Sequence[str]) -> str:
         return "| " + " | ".join(cells) + " |"
 
-    return "\n".join([line(header), line(["---"] * len(header)), *(line(r) for r in rows)])
+    header = header.split(" | ") if isinstance(header, str) else header
+    aligns = aligns or ["---"] * len(header)
+    return "\n".join([line(header), line(aligns), *(line(r) for r in rows)])
 
 
 @dataclass(frozen=True)
 class Column:
-    """One column of a generated table: its title, how a row's cell is written, its alignment."""
+    """One column of a generated table: its title, how a row's cell is written, its alignment.
+
+    ``cell`` is a function of the row or a format string filled from the row (a dict):
+    ``"{ms_per_step:.3g}"``, ``"{controller[fraction_at_bound]:.1%}"``.
+    """
 
     title: str
-    cell: Callable[[Any], str]
+    cell: Callable[[Any], str] | str
     align: str = "---"
+
+    def text(self, row: Any) -> str:
+        """Return the cell of ``row``."""
+        return self.cell.format_map(row) if isinstance(self.cell, str) else self.cell(row)
+
+
+def series(titles: Iterable[str], key: str, show: Callable[[Any], str]) -> list[Column]:
+    """Return a column per title, the i-th showing ``show(row[key][i])``."""
+    return [Column(title, lambda r, i=i: show(r[key][i])) for i, title in enumerate(titles)]
 
 
 def table(rows: Iterable[Any], columns: Sequence[Column], caption: str = "") -> str:
-    """Render ``rows`` as the Markdown table ``columns`` describe, under ``caption`` if one is given.
-
-    The one renderer of the generated tables: a page's generator says which rows and which
-    columns; every cell is written by its column from the row (a dict of the data's schema).
-    """
-    lines = [[column.cell(row) for column in columns] for row in rows]
-    text = markdown_table([c.title for c in columns], lines)
-    aligns = "| " + " | ".join(c.align for c in columns) + " |"
-    text = text.replace("| " + " | ".join(["---"] * len(columns)) + " |", aligns, 1)
+    """Render ``rows`` as the Markdown table ``columns`` describe, under ``caption`` if one is given."""
+    lines = [[column.text(row) for column in columns] for row in rows]
+    text = markdown_table([c.title for c in columns], lines, [c.align for c in columns])
     return f"{caption}\n\n{text}" if caption else text
 
 
@@ -90,65 +73,36 @@ def page_tables(page: Path) -> dict[str, str]:
     return read_blocks(page.read_text(encoding="utf-8"))
 
 
-def replace_generated(text: str, name: str, content: str, where: object = "the page") -> str:
-    """Replace the content of the generated block ``name`` in ``text``; the markers must exist.
+def replace_blocks(text: str, blocks: dict[str, str]) -> tuple[str, list[str]]:
+    """Return ``text`` with the generated blocks that ``blocks`` names replaced, and the names it lacks.
 
-    Parameters
-    ----------
-    text
-        The page's text.
-    name
-        The block's name.
-    content
-        Its new content.
-    where
-        How the page is named in the error.
-
-    Returns
-    -------
-    str
-        The page's new text.
-
-    Raises
-    ------
-    SystemExit
-        If ``text`` has no generated block ``name``.
+    A block's new content is written without its trailing newlines.
     """
-    pattern = re.compile(
-        re.escape(begin_marker(name) + "\n") + r"(?:(?!<!-- ).)*?" + re.escape(end_marker(name)), re.S
-    )
-    if not pattern.search(text):
-        raise SystemExit(f"{where} has no markers for the generated block {name!r}.")
-    return pattern.sub(lambda _: block(name, content), text)
-
-
-def update_page(page: Path, tables: dict[str, str]) -> list[str]:
-    """Replace the generated blocks of the file ``page`` that ``tables`` names; leave the others.
-
-    Returns
-    -------
-    list of str
-        The names in ``tables`` that the page has no block for, sorted.
-    """
-    text = page.read_text(encoding="utf-8")
     found = set()
 
     def replace(match: re.Match) -> str:
         name = match.group("name")
-        if name not in tables:
+        if name not in blocks:
             return match.group(0)
         found.add(name)
-        return block(name, tables[name])
+        body = blocks[name].rstrip("\n")
+        return f"<!-- generated: {name} -->\n{body}\n<!-- end generated: {name} -->"
 
-    page.write_text(BLOCK_PATTERN.sub(replace, text), encoding="utf-8")
-    return sorted(set(tables) - found)
+    return BLOCK_PATTERN.sub(replace, text), sorted(set(blocks) - found)
+
+
+def update_page(page: Path, blocks: dict[str, str]) -> list[str]:
+    """Replace the generated blocks of the file ``page`` that ``blocks`` names; return those it lacks."""
+    text, missing = replace_blocks(page.read_text(encoding="utf-8"), blocks)
+    page.write_text(text, encoding="utf-8")
+    return missing
 
 
 def stale_blocks(pages: dict[Path, dict[str, str]], root: Path) -> list[str]:
     """Return ``PAGE: BLOCK`` for every block of ``pages`` missing on its page or differing from it."""
     found = []
     for page, blocks in pages.items():
-        on_page = read_blocks(page.read_text(encoding="utf-8"))
+        on_page = page_tables(page)
         found += [
             f"{page.relative_to(root)}: {name}" for name, text in blocks.items() if on_page.get(name) != text
         ]

@@ -6,19 +6,20 @@ The benchmark is :mod:`openmm_alphaprk.benchmarks.md_sweep` (the sweep of
     python -m openmm_alphaprk.benchmarks.md_sweep docs/sweeps/md_benchmark.toml \
         --json docs/data/benchmarks/benchmarks.json --figures docs/figures [--run]
 
-It writes ``docs/data/benchmarks/benchmarks.json``; ``python -m tools.reports`` renders and
-checks the page's tables from it (:func:`render`).
+It writes ``docs/data/benchmarks/benchmarks.json``; ``python -m tools.reports`` renders the
+page's tables from it (:func:`render`).
 """
 
 from __future__ import annotations
 
 import json
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 
 from openmm_alphaprk.benchmarks.md_sweep.results import LABELS, STABLE_MAX_PER_DOF, SYSTEMS
-from tools.reports.markdown import Column, read_blocks, replace_generated, table
+from tools.reports.markdown import Column, table
 from tools.reports.sources import DATA, DOCS, provenance_line, source
 
 PAGE = DOCS / "benchmarks.md"
@@ -36,52 +37,54 @@ def fmt(value: float, digits: int = 3) -> str:
     return f"{value:.{digits}g}"
 
 
-def _controller(title: str, key: str, show: Callable[[dict], str]) -> Column:
-    return Column(title, lambda e: show(e.get("controller", {})) if key in e.get("controller", {}) else "—")
-
-
-def _timing(key: str, digits: str) -> Callable[[dict], str]:
-    return lambda e: format(e["timing"].get(key, float("nan")), digits)
+def _controller(title: str, key: str, show: Callable[[dict], str] | str) -> Column:
+    """Return a column of the controller's ``key``, written by ``show`` as a column's cell; "—" without it."""
+    column = Column(title, show)
+    return Column(title, lambda e: column.text(e) if key in e.get("controller", {}) else "—")
 
 
 #: The energy table's columns (a failed run: its label and error, the other cells empty).
 ENERGY_COLUMNS = [
-    Column("integrator", lambda e: e["label"]),
-    Column("evals/step", lambda e: f"{e['force_evaluations_per_step']:.2f}"),
-    Column("time/step ÷ RATTLE 2 fs", _timing("time_per_step_ratio", ".2f")),
-    Column("time/ps ÷ RATTLE 2 fs", _timing("time_per_ps_ratio", ".2f")),
-    Column("ns/day", _timing("ns_per_day", ".3g")),
-    Column("sweep ns/day", lambda e: f"{e['sweep_ns_per_day']:.3g}"),
+    Column("integrator", "{label}"),
+    Column("evals/step", "{force_evaluations_per_step:.2f}"),
+    Column("time/step ÷ RATTLE 2 fs", "{timing[time_per_step_ratio]:.2f}"),
+    Column("time/ps ÷ RATTLE 2 fs", "{timing[time_per_ps_ratio]:.2f}"),
+    Column("ns/day", "{timing[ns_per_day]:.3g}"),
+    Column("sweep ns/day", "{sweep_ns_per_day:.3g}"),
     Column("RMS(H − E_ref) kJ/mol", lambda e: fmt(e["rms_residual"])),
     Column("max", lambda e: fmt(e["max_abs_residual"])),
     Column("drift kJ/mol/ns/DOF", lambda e: fmt(e["drift_per_dof"], 2)),
     _controller(
         "α* p5/p50/p95",
         "alpha_percentiles.p50",
-        lambda c: "/".join(f"{c[f'alpha_percentiles.{p}']:.2f}" for p in ("p5", "p50", "p95")),
+        "/".join(f"{{controller[alpha_percentiles.{p}]:.2f}}" for p in ("p5", "p50", "p95")),
     ),
     _controller(
-        "within tol.", "fraction_within_tolerance", lambda c: f"{100 * c['fraction_within_tolerance']:.0f} %"
+        "within tol.",
+        "fraction_within_tolerance",
+        lambda e: f"{100 * e['controller']['fraction_within_tolerance']:.0f} %",
     ),
-    _controller("at bound", "fraction_at_bound", lambda c: f"{100 * c['fraction_at_bound']:.1f} %"),
+    _controller(
+        "at bound", "fraction_at_bound", lambda e: f"{100 * e['controller']['fraction_at_bound']:.1f} %"
+    ),
 ]
 
 
 def energy_markdown(system: str, entries: list[dict]) -> str:
-    """Render the Markdown table of energy error and cost."""
+    """Render the Markdown table of energy error and cost (a failed run: its label and error)."""
     first = entries[0]
     caption = (
         f"**{system}**: {first.get('n_atoms', '?')} atoms, {first.get('degrees_of_freedom', '?')} DOF, "
         f"{fmt(first.get('simulated_ps', float('nan')))} ps per run, from the same equilibrated start."
     )
-    failed = [Column("", lambda e: e["label"]), Column("", lambda e: f"failed: {e['error'][:80]}")]
-    rows = [
-        [c.cell(e) for c in failed] + [""] * (len(ENERGY_COLUMNS) - 2)
-        if "error" in e
-        else [c.cell(e) for c in ENERGY_COLUMNS]
-        for e in entries
-    ]
-    return table(rows, [Column(c.title, lambda r, i=i: r[i]) for i, c in enumerate(ENERGY_COLUMNS)], caption)
+
+    def cells(e: dict) -> list[str]:
+        if "error" in e:
+            return [e["label"], f"failed: {e['error'][:80]}"] + [""] * (len(ENERGY_COLUMNS) - 2)
+        return [c.text(e) for c in ENERGY_COLUMNS]
+
+    columns = [Column(c.title, lambda r, i=i: r[i]) for i, c in enumerate(ENERGY_COLUMNS)]
+    return table(map(cells, entries), columns, caption)
 
 
 DYNAMICS_COLUMNS = [
@@ -102,6 +105,7 @@ def dynamics_markdown(system: str, entries: list[dict], reference_label: str) ->
 
 
 def _scan_cell(cell: dict | None) -> str:
+    """Write a scan cell: max|H − E_ref| per DOF, marked if unstable; ✗ for a failed run."""
     if cell is None:
         return ""
     if cell["status"] != "ok":
@@ -110,6 +114,7 @@ def _scan_cell(cell: dict | None) -> str:
 
 
 def _largest(cells: dict) -> str:
+    """Write the largest stable step of a scanned integrator."""
     largest = cells["largest_stable_fs"]
     if sum(1 for s in cells if s[0].isdigit()) == 1:
         return "not scanned"
@@ -134,37 +139,26 @@ def scan_markdown(system: str, scan: dict) -> str:
     return table(scan.items(), columns, caption)
 
 
-def render_page(page: str, report: dict) -> str:
-    """Replace the generated blocks of the page's text ``page`` with the report's tables."""
+def blocks(report: dict) -> dict[str, str]:
+    """Return the page's generated blocks from the benchmark's report, by name."""
     environment = report["environment"]
     run = (
         "the MD benchmark (today `python -m openmm_alphaprk.benchmarks.md_sweep`) over the sweep "
         "`docs/sweeps/md_benchmark.toml`, "
         f"{environment['platform']} platform, OpenMM {environment['openmm']}"
     )
-    page = replace_generated(
-        page, "provenance", provenance_line([source("benchmarks/benchmarks.json")], run), PAGE
-    )
+    found = {"provenance": provenance_line([source("benchmarks/benchmarks.json")], run)}
     for system in SYSTEMS:
-        if report["energy"][system]:
-            page = replace_generated(
-                page, f"energy {system}", energy_markdown(system, report["energy"][system]), PAGE
-            )
-        if report["dynamics"][system]:
-            page = replace_generated(
-                page,
-                f"dynamics {system}",
-                dynamics_markdown(system, report["dynamics"][system], report["reference"]),
-                PAGE,
-            )
-        if report["scan"][system]:
-            page = replace_generated(
-                page, f"scan {system}", scan_markdown(system, report["scan"][system]), PAGE
-            )
-    return page
+        energy, dynamics, scan = (report[part][system] for part in ("energy", "dynamics", "scan"))
+        if energy:
+            found[f"energy {system}"] = energy_markdown(system, energy)
+        if dynamics:
+            found[f"dynamics {system}"] = dynamics_markdown(system, dynamics, report["reference"])
+        if scan:
+            found[f"scan {system}"] = scan_markdown(system, scan)
+    return found
 
 
-def render() -> dict:
+def render() -> dict[Path, dict[str, str]]:
     """docs/benchmarks.md's generated blocks from the benchmark's JSON file."""
-    report = json.loads(JSON_OUT.read_text(encoding="utf-8"))
-    return {PAGE: read_blocks(render_page(PAGE.read_text(encoding="utf-8"), report))}
+    return {PAGE: blocks(json.loads(JSON_OUT.read_text(encoding="utf-8")))}

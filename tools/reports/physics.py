@@ -21,6 +21,8 @@ CLUSTER = "physics/water-cluster.json"
 FIGURES = DOCS / "figures"
 #: The rows whose velocities are scaled, in the page's order.
 RESCALED = ("rattle+rescale", "rattle+rescale@10", "rattle4+rescale")
+#: The temperatures of a group, in the equipartition table's order.
+TEMPERATURES = ("total", "translational", "rotational")
 #: How far (combined standard errors) a rescaled row may sit from the reference (the issue's goal).
 GOAL_ERRORS = 2.0
 #: A published TIP3P self-diffusion coefficient beside ours (1e-5 cm²/s).
@@ -31,6 +33,7 @@ PUBLISHED_D = (
 
 
 def _pm(value: float | None, error: float | None, digits: int = 3) -> str:
+    """Write ``value ± error`` ("-" for no value; no error: the value alone)."""
     if value is None or value != value:
         return "-"
     if error is None or error != error:
@@ -39,6 +42,7 @@ def _pm(value: float | None, error: float | None, digits: int = 3) -> str:
 
 
 def _provenance(source: Source, data: dict) -> str:
+    """Return the provenance line of a ``bench physics`` report: its system, platform and each mode's runs."""
     arguments = data["arguments"]
     parts = []
     if "segments" in arguments:
@@ -76,12 +80,12 @@ def _segment_gap(first: dict, second: dict) -> np.ndarray:
     return np.array(first["segment_temperatures_K"]) - np.array(second["segment_temperatures_K"])
 
 
-def _gap(group: dict, a: str, b: str) -> tuple[float, float]:
-    """Mean and standard error over segments of T_a − T_b (K)."""
-    first, second = group[a].get("segment_temperatures_K"), group[b].get("segment_temperatures_K")
-    if not first or not second or len(first) < 2:
-        return group[a]["temperature_K"] - group[b]["temperature_K"], math.nan
-    return _mean_error(_segment_gap(group[a], group[b]))
+def _gap(group: dict) -> tuple[float, float]:
+    """Mean and standard error over segments of T_translational − T_rotational (K)."""
+    first, second = group["translational"], group["rotational"]
+    if len(first.get("segment_temperatures_K") or ()) < 2 or not second.get("segment_temperatures_K"):
+        return first["temperature_K"] - second["temperature_K"], math.nan
+    return _mean_error(_segment_gap(first, second))
 
 
 def equipartition_table(data: dict) -> str:
@@ -91,36 +95,31 @@ def equipartition_table(data: dict) -> str:
     rows = []
     for label, setting in {reference: eq["reference"], **eq["settings"]}.items():
         is_reference = label == reference
-        system = setting["groups"]["system"]
-        gap = _gap(system, "translational", "rotational")
-        halves = _halves(setting["groups"])
+        groups = setting["groups"]
+        system = groups["system"]
         against = setting.get("against_reference", {}).get("system", {})
         z = [against.get(p, {}).get("in_errors") for p in ("translational", "rotational")]
         step = label.partition(" h=")[2]
         rattle = eq["settings"].get(f"rattle h={step}", {}).get("groups", {}).get("system")
-        versus_rattle = "-" if rattle is None or rattle is system else _pm(*_paired_gap(system, rattle), 2)
+        versus_rattle = "-"
+        if rattle is not None and rattle is not system:  # (T_tr − T_rot) − RATTLE's, paired by start
+            gaps = [_segment_gap(g["translational"], g["rotational"]) for g in (system, rattle)]
+            versus_rattle = _pm(*_mean_error(gaps[0] - gaps[1]), 2)
         rows.append(
-            [
-                _label(label) + (" (reference)" if is_reference else ""),
-                _pm(system["total"]["temperature_K"], system["total"]["standard_error_K"], 4),
-                _pm(system["translational"]["temperature_K"], system["translational"]["standard_error_K"], 4),
-                _pm(system["rotational"]["temperature_K"], system["rotational"]["standard_error_K"], 4),
-                _pm(*gap, 2),
-                _pm(*halves, 2),
+            [_label(label) + (" (reference)" if is_reference else "")]
+            + [_pm(system[p]["temperature_K"], system[p]["standard_error_K"], 4) for p in TEMPERATURES]
+            + [
+                _pm(*_gap(system), 2),
+                _pm(*_mean_error(_segment_gap(groups["half 1"]["total"], groups["half 2"]["total"])), 2),
                 versus_rattle,
                 " / ".join("-" if v is None or is_reference else f"{v:+.1f}" for v in z),
             ]
         )
-    header = [
-        "setting",
-        "T total (K)",
-        "T translation (K)",
-        "T rotation (K)",
-        "T_tr − T_rot (K)",
-        "T half 1 − half 2 (K)",
-        "gap − RATTLE's at the step (K, by start)",
-        "translation / rotation vs reference (errors)",
-    ]
+    header = (
+        "setting | T total (K) | T translation (K) | T rotation (K) | T_tr − T_rot (K) "
+        "| T half 1 − half 2 (K) | gap − RATTLE's at the step (K, by start) "
+        "| translation / rotation vs reference (errors)"
+    )
     return markdown_table(header, rows) + (
         f"\n\nReference: {_label(reference)}. Errors: standard error of the mean over the independent "
         "segments (one temperature per segment: 2⟨K⟩/(N k_B) of physical_validation's partition of "
@@ -132,17 +131,8 @@ def equipartition_table(data: dict) -> str:
     )
 
 
-def _paired_gap(system: dict, rattle: dict) -> tuple[float, float]:
-    """Mean and standard error over starts of (T_tr − T_rot) minus RATTLE's from the same start (K)."""
-    gaps = [_segment_gap(group["translational"], group["rotational"]) for group in (system, rattle)]
-    return _mean_error(gaps[0] - gaps[1])
-
-
-def _halves(groups: dict) -> tuple[float, float]:
-    return _mean_error(_segment_gap(groups["half 1"]["total"], groups["half 2"]["total"]))
-
-
 def _flag(flag: dict | str) -> str:
+    """Say which partition of a setting ``alphaprk validate`` flagged, and by how much."""
     if isinstance(flag, str):
         return flag
     return (
@@ -194,8 +184,7 @@ def transport_table(data: dict) -> str:
                     text += f" ({(mean - reference['mean'][key]) / combined:+.1f})"
             row.append(text)
         rows.append(row)
-    header = ["setting"] + [title for _, title, _ in quantities]
-    return markdown_table(header, rows) + (
+    return markdown_table(["setting"] + [title for _, title, _ in quantities], rows) + (
         "\n\nMean ± standard error over the segments; in brackets the distance from RATTLE at 0.5 fs in "
         "combined standard errors. D: water oxygens' MSD (MDAnalysis `EinsteinMSD`) fitted over 10–60 % of "
         f"the longest lag, plus the Yeh–Hummer correction with TIP3P's viscosity "
@@ -211,17 +200,13 @@ def rescaling_table(data: dict) -> str:
     for path, totals in runs.items():
         by_setting.setdefault(Path(path).parent.name, []).append(totals)
     rows = []
-    for name, group in sorted(
-        by_setting.items(), key=lambda item: (float(item[0].split("@")[-1][:-2]), item[0])
-    ):
+    for name, group in sorted(by_setting.items(), key=lambda item: (_step(item[0]), item[0])):
         cells = []
         for key in ("mean_scale_change", "rms_scale_change", "added_energy_per_ns"):
             values = [g[key] for g in group]
             cells.append(_pm(*_mean_error(values), 2) if len(values) > 1 else _pm(values[0], None, 2))
-        integrator, _, step = name.rpartition("@")
-        rows.append([f"`{integrator}` at {step[:-2]} fs"] + cells)
-    header = ["setting", "mean s − 1", "RMS s − 1", "energy added (kJ/mol/ns)"]
-    return markdown_table(header, rows) + (
+        rows.append([_setting(name)] + cells)
+    return markdown_table("setting | mean s − 1 | RMS s − 1 | energy added (kJ/mol/ns)", rows) + (
         "\n\nPer segment over all its rescalings (`summary.json`'s `rescaling`), mean ± standard error "
         "over the segments. Energy added = −Σ(H − E_ref before each scaling) per ns of simulated time."
     )
@@ -237,13 +222,8 @@ def order_table(data: dict) -> str:
             rows.append([f"`{name}`", fluctuations, f"{entry['fitted_order']:.2f}"])
         else:
             relative = ", ".join(sig(r["relative"], 2) for r in entry["rows"])
-            rows.append(
-                [
-                    f"`{name}`",
-                    f"RMS(H − E_ref)/|E_ref|: {relative}",
-                    "round-off" if all(r["at_round_off"] for r in entry["rows"]) else "above round-off",
-                ]
-            )
+            verdict = "round-off" if all(r["at_round_off"] for r in entry["rows"]) else "above round-off"
+            rows.append([f"`{name}`", f"RMS(H − E_ref)/|E_ref|: {relative}", verdict])
     steps = ", ".join(f"{h:g}" for h in data["arguments"]["order"]["timesteps"])
     fits = data["order"]["rescaling"].get("fits", {})
     powers = "; ".join(
@@ -276,16 +256,15 @@ def temperature_table(data: dict) -> str:
     for name, entry in sorted(paired.items(), key=lambda item: (_step(item[0]), item[0])):
         if entry["temperature_difference_K"][1] == 0:  # the reference itself
             continue
-        cells = [f"`{name.rpartition('@')[0]}` at {name.rpartition('@')[2][:-2]} fs"]
+        cells = [_setting(name)]
         for key in ("temperature_difference_K", "potential_difference_kJ_per_mol"):
             value, error = entry[key]
-            cells.append(_signed(value, error))
+            distance = "-"
             if key in limit and error > 0:
-                cells.append(f"{(value - limit[key][0]) / math.hypot(error, limit[key][1]):+.1f}")
-            else:
-                cells.append("-")
+                distance = f"{(value - limit[key][0]) / math.hypot(error, limit[key][1]):+.1f}"
+            cells += [_signed(value, error), distance]
         rows.append(cells)
-    header = ["setting", "ΔT (K)", "ΔT − limit (errors)", "ΔU (kJ/mol)", "ΔU − limit (errors)"]
+    header = "setting | ΔT (K) | ΔT − limit (errors) | ΔU (kJ/mol) | ΔU − limit (errors)"
     limit_text = "-"
     if limit:
         t, u = limit["temperature_difference_K"], limit["potential_difference_kJ_per_mol"]
@@ -299,10 +278,18 @@ def temperature_table(data: dict) -> str:
 
 
 def _step(folder: str) -> float:
+    """Return the step (fs) of a run folder ``NAME@2fs``."""
     return float(folder.rpartition("@")[2][:-2])
 
 
+def _setting(folder: str) -> str:
+    """Name the setting of a run folder ``NAME@2fs`` as the page does: ```NAME`` at 2 fs`."""
+    integrator, _, step = folder.rpartition("@")
+    return f"`{integrator}` at {step[:-2]} fs"
+
+
 def _signed(value: float, error: float) -> str:
+    """Write ``+value ± error``."""
     return f"{value:+.2g} ± {sig(error)}"
 
 
@@ -315,20 +302,15 @@ def stress_table(data: dict, gaps: tuple[tuple[str, str, str, str], ...]) -> str
             values = np.array([_window_gap(w, group_a, a, group_b, b) for w in run["windows"]])
             fit = np.polyfit(times, values, 1, cov=True) if len(times) > 3 else None
             trend = "-" if fit is None else _pm(100 * fit[0][0], 100 * math.sqrt(fit[1][0, 0]), 2)
-            integrator, _, step = name.rpartition("@")
             length = "" if run.get("complete", True) else f" (stopped at {times[-1]:.0f} ps)"
-            rows.append(
-                [
-                    f"`{integrator}` at {step[:-2]} fs{length}",
-                    f"{group_a} {a} − {group_b} {b}",
-                    f"{values[0]:+.1f}",
-                    f"{values[-1]:+.1f}",
-                    trend,
-                    f"{np.std(values, ddof=1):.1f}",
-                ]
-            )
-    header = ["row", "gap", "first window (K)", "last window (K)", "trend (K per 100 ps)", "spread (K)"]
+            cells = [f"{values[0]:+.1f}", f"{values[-1]:+.1f}", trend, f"{np.std(values, ddof=1):.1f}"]
+            rows.append([_setting(name) + length, f"{group_a} {a} − {group_b} {b}", *cells])
     windows = next(iter(data["stress"].values()))["windows"]
+    text = (
+        f"\n\n{len(windows)} consecutive windows of each run, each partition's temperature "
+        "2⟨K⟩/(N k_B) over the window's frames; trend: least-squares slope of the gap against "
+        "time ± its standard error; spread: standard deviation of the gap over the windows."
+    )
     energy = [
         [
             f"`{name.rpartition('@')[0]}`",
@@ -338,21 +320,11 @@ def stress_table(data: dict, gaps: tuple[tuple[str, str, str, str], ...]) -> str
         for name, run in data["stress"].items()
         if (summary := run.get("summary")) and (dof := summary["degrees_of_freedom"])
     ]
-    energy_text = (
-        "\n\nOver each whole run:\n\n"
-        + markdown_table(["row", "drift of H (kJ/mol/ns)", "energy the scaling added (kJ/mol/ns)"], energy)
-        if energy
-        else ""
-    )
-    return (
-        markdown_table(header, rows)
-        + (
-            f"\n\n{len(windows)} consecutive windows of each run, each partition's temperature "
-            "2⟨K⟩/(N k_B) over the window's frames; trend: least-squares slope of the gap against "
-            "time ± its standard error; spread: standard deviation of the gap over the windows."
-        )
-        + energy_text
-    )
+    if energy:
+        header = "row | drift of H (kJ/mol/ns) | energy the scaling added (kJ/mol/ns)"
+        text += "\n\nOver each whole run:\n\n" + markdown_table(header, energy)
+    header = "row | gap | first window (K) | last window (K) | trend (K per 100 ps) | spread (K)"
+    return markdown_table(header, rows) + text
 
 
 def _window_gap(window: dict, group_a: str, a: str, group_b: str, b: str) -> float:
@@ -382,16 +354,13 @@ def figures(data: dict, stem: str) -> None:
         plt.close(fig)
     if "stress" in data:
         fig, ax = plt.subplots(figsize=(7, 4))
-        solute = "solute" in next(iter(data["stress"].values()))["windows"][0]["temperatures"]
-        gap = (
-            ("solute", "total", "solvent", "total")
-            if solute
-            else ("system", "translational", "system", "rotational")
-        )
+        gap = ("system", "translational", "system", "rotational")
+        if "solute" in next(iter(data["stress"].values()))["windows"][0]["temperatures"]:
+            gap = ("solute", "total", "solvent", "total")
         for name, run in data["stress"].items():
             times = [w["end_ps"] for w in run["windows"]]
             ax.plot(times, [_window_gap(w, *gap) for w in run["windows"]], marker="o", label=name)
-        ax.set(xlabel="end of window (ps)", ylabel=f"T {gap[0]} {gap[1]} − T {gap[2]} {gap[3]} (K)")
+        ax.set(xlabel="end of window (ps)", ylabel="T {} {} − T {} {} (K)".format(*gap))
         ax.axhline(0, color="grey", lw=0.5)
         ax.legend(fontsize=7)
         fig.tight_layout()
@@ -401,35 +370,27 @@ def figures(data: dict, stem: str) -> None:
 
 def render(write_figures: bool = False) -> dict[Path, dict[str, str]]:
     """Every generated block of docs/physics.md."""
-    blocks = {}
-    water, source = load(WATER)
-    blocks["water provenance"] = _provenance(source, water)
-    blocks["equipartition"] = equipartition_table(water) + "\n\n" + goal_verdict(water)
-    blocks["rescaling"] = rescaling_table(water)
-    blocks["temperature"] = temperature_table(water)
-    blocks["transport"] = transport_table(water)
-    if "order" in water:
-        blocks["order"] = order_table(water)
-    if (DOCS / "data" / CLUSTER).is_file():
-        cluster, cluster_source = load(CLUSTER)
-        blocks["cluster provenance"] = _provenance(cluster_source, cluster).replace(
-            "CPU platform", "Reference platform"
-        )
-        blocks["cluster order"] = order_table(cluster)
-    if "stress" in water:
-        blocks["water stress"] = stress_table(water, (("system", "translational", "system", "rotational"),))
+    (water, water_source), (cluster, cluster_source) = load(WATER), load(CLUSTER)
+    solute, solute_source = load(SOLUTE)
     if write_figures:
         figures(water, "tip3p-2nm")
-    if (DOCS / "data" / SOLUTE).is_file():
-        solute, solute_source = load(SOLUTE)
-        blocks["solute provenance"] = _provenance(solute_source, solute)
-        blocks["solute stress"] = stress_table(
-            solute,
-            (
-                ("system", "translational", "system", "rotational and internal"),
-                ("solute", "total", "solvent", "total"),
-            ),
-        )
-        if write_figures:
-            figures(solute, "villin-h3")
+        figures(solute, "villin-h3")
+    cluster_provenance = _provenance(cluster_source, cluster).replace("CPU platform", "Reference platform")
+    solute_gaps = (
+        ("system", "translational", "system", "rotational and internal"),
+        ("solute", "total", "solvent", "total"),
+    )
+    blocks = {
+        "water provenance": _provenance(water_source, water),
+        "equipartition": equipartition_table(water) + "\n\n" + goal_verdict(water),
+        "rescaling": rescaling_table(water),
+        "temperature": temperature_table(water),
+        "transport": transport_table(water),
+        "order": order_table(water),
+        "cluster provenance": cluster_provenance,
+        "cluster order": order_table(cluster),
+        "water stress": stress_table(water, (("system", "translational", "system", "rotational"),)),
+        "solute provenance": _provenance(solute_source, solute),
+        "solute stress": stress_table(solute, solute_gaps),
+    }
     return {PAGE: blocks}

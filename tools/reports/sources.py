@@ -63,26 +63,21 @@ def load(path: str) -> tuple[dict, Source]:
     return json.loads((DATA / path).read_text(encoding="utf-8")), source(path)
 
 
-def provenance_line(sources: list[Source], run: str, link: str = "data/") -> str:
-    """One line a person can read: the run, where and when it ran, and a link to each data file.
+def link(path: str, data: str = "data/") -> str:
+    """Return a Markdown link to the data file ``path``; ``data`` is the path from the page to docs/data/."""
+    return f"[{path.split('/')[-1]}]({data}{path})"
 
-    ``link`` is the path from the page to docs/data/ (``data/`` from docs/, ``docs/data/`` from
-    the README).
-    """
+
+def provenance_line(sources: list[Source], run: str, data: str = "data/") -> str:
+    """One line a person can read: the run, where and when it ran, and a link to each data file."""
     days = sorted({s.date for s in sources})
     machines = sorted({s.machine for s in sources})
     when = days[0] if len(days) == 1 else f"{days[0]} to {days[-1]}"
-    files = ", ".join(f"[{s.path.split('/')[-1]}]({link}{s.path})" for s in sources)
+    files = ", ".join(link(s.path, data) for s in sources)
     return f"{run}; {' and '.join(machines)}, {when}. Data: {files}."
 
 
 # ------------------------------------------------------------------ the rows' one schema
-def canonical(row: dict) -> str | None:
-    """Return the registry's name of a row's integrator (``parse_integrator(spec).name``), None if unnamed."""
-    spec = row.get("integrator")
-    return parse_name(spec) if isinstance(spec, str) else None
-
-
 def pick(rows: list[dict], name: str, divisor: int = 1, labelled: str | None = None, **match) -> dict:
     """Return the one row of ``rows`` of the integrator ``name`` at h/``divisor`` (and the ``match`` fields).
 
@@ -97,12 +92,19 @@ def pick(rows: list[dict], name: str, divisor: int = 1, labelled: str | None = N
         labels = {label(name), labelled}
     except ValueError:
         labels = {labelled}
+
+    def named(row: dict) -> bool:
+        spec = row.get("integrator")
+        return (
+            parse_name(spec) == wanted
+            if isinstance(spec, str)
+            else spec is None and row.get("name") in labels
+        )
+
     found = [
         row
         for row in rows
-        if (canonical(row) == wanted or (row.get("integrator") is None and row.get("name") in labels))
-        and row.get("divisor", 1) == divisor
-        and all(row.get(key) == value for key, value in match.items())
+        if named(row) and row.get("divisor", 1) == divisor and all(row.get(k) == v for k, v in match.items())
     ]
     if len(found) != 1:
         raise LookupError(f"{len(found)} rows of {name} at h/{divisor} {match or ''}")

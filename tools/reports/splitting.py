@@ -1,20 +1,15 @@
-"""The generated blocks of docs/splitting.md from docs/data/splitting/ (the explicit α-family's survey).
-
-Part of ``python -m tools.reports``. The data are written by
-``tools/scripts/splitting_survey.py``.
-"""
+"""docs/splitting.md's generated blocks from docs/data/splitting/ (written by tools/scripts)."""
 
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
 from pathlib import Path
 
 from openmm_alphaprk.runs.integrator_names import label
 from tools.reports.long_runs import long_table
 from tools.reports.markdown import Column, markdown_table, table
 from tools.reports.numbers import sig, times, tolerance
-from tools.reports.sources import DATA, DOCS, Source, load, provenance_line
+from tools.reports.sources import DOCS, load, provenance_line
 
 PAGE = DOCS / "splitting.md"
 FOLDER = "splitting/"
@@ -62,10 +57,12 @@ RESCALED_GOAL = 1e-3
 
 
 def _rows(data: dict) -> dict[str, dict]:
+    """Return a survey's rows by label."""
     return {row["row"]: row for row in data["rows"]}
 
 
 def _title(data: dict, path: str = "") -> str:
+    """Return a survey's title in bold: the system, the step, the hydrogens' mass and how they were set."""
     name = SYSTEMS.get(data["system"], data["system"])
     title = f"**{name}, {data['timestep_fs']:g} fs"
     if path.endswith("_second.json"):
@@ -96,101 +93,84 @@ def _label(row: str) -> str:
 def survey_table(path: str) -> str:
     """Render one survey: evaluations per step, RMS(H − E_ref), position errors at the horizons, per row."""
     data, source = load(FOLDER + path)
-    horizons = " / ".join(str(h) for h in data["horizons"])
-    header = ["row", "evaluations / step", "RMS(H − E_ref) kJ/mol"]
-    header.append(f"position error nm after {horizons} steps")
-    table = []
-    for row in data["rows"]:
-        errors = " / ".join(sig(e) for e in row["position_rms"])
-        if row.get("blew_up_at_step"):
-            errors += f" (blew up at step {row['blew_up_at_step']})"
-        label = _label(row["row"])
-        table.append([label, f"{row['evaluations']:g}", sig(row["rms_residual"], 3), errors])
+
+    def errors(row: dict) -> str:
+        text = " / ".join(sig(e) for e in row["position_rms"])
+        return text + (f" (blew up at step {row['blew_up_at_step']})" if row.get("blew_up_at_step") else "")
+
+    columns = [
+        Column("row", lambda r: _label(r["row"])),
+        Column("evaluations / step", "{evaluations:g}"),
+        Column("RMS(H − E_ref) kJ/mol", lambda r: sig(r["rms_residual"], 3)),
+        Column(f"position error nm after {' / '.join(str(h) for h in data['horizons'])} steps", errors),
+    ]
     run = (
         f"{_title(data, path)} — {data['steps']} steps from the start `{data.get('start', data['system'])}`, "
         f"reference {data['reference'].split(',')[0]}"
     )
-    return provenance_line([source], run) + "\n\n" + markdown_table(header, table)
+    return table(data["rows"], columns, provenance_line([source], run))
 
 
-@dataclass(frozen=True)
-class Comparison:
-    """The minimum-error member against RATTLE at h/2 in one survey (ratios > 1: the member better)."""
+def compare(path: str) -> dict | None:
+    """Return `split-me` against RATTLE at h/2 in the survey ``path`` (None without both rows).
 
-    data: dict
-    source: Source
-    energy: float
-    positions: tuple[float, ...]
-    rescaled_fraction: float | None
-    rescaled_rms: float | None
-
-    @property
-    def worst_position(self) -> float:
-        """The largest ratio of the member's position error to RATTLE at h/2's."""
-        return max(self.positions)
-
-
-def compare(path: str) -> Comparison | None:
-    """Return `split-me` against RATTLE at h/2 in the survey ``path`` (None without both rows)."""
-    data, source = load(FOLDER + path)
+    Its ``energy`` and ``positions``: RATTLE at h/2's errors over the member's (above 1: the
+    member better); ``rescaled_rms`` and ``rescaled_fraction``: `split-me+rescale`'s RMS(H − E_ref)
+    and that over RATTLE's at h (None without those rows).
+    """
+    data, _ = load(FOLDER + path)
     rows = _rows(data)
     me, half = rows.get("split-me"), rows.get("RATTLE at h/2")
     if me is None or half is None:
         return None
     rescaled, rattle = rows.get("split-me+rescale"), rows.get("RATTLE at h")
-    fraction = None
-    if rescaled is not None and rattle is not None:
-        fraction = rescaled["rms_residual"] / rattle["rms_residual"]
-    return Comparison(
-        data,
-        source,
-        half["rms_residual"] / me["rms_residual"],
-        tuple(a / b for a, b in zip(me["position_rms"], half["position_rms"])),
-        fraction,
-        None if rescaled is None else rescaled["rms_residual"],
-    )
+    return {
+        "data": data,
+        "energy": half["rms_residual"] / me["rms_residual"],
+        "positions": [a / b for a, b in zip(me["position_rms"], half["position_rms"])],
+        "rescaled_rms": None if rescaled is None else rescaled["rms_residual"],
+        "rescaled_fraction": None
+        if rescaled is None or rattle is None
+        else rescaled["rms_residual"] / rattle["rms_residual"],
+    }
 
 
-def _verdict(goal: float | None, met: bool) -> str:
-    return "" if goal is None else f" **{'met' if met else 'missed'}**"
+def _verdict(met: bool) -> str:
+    return f" **{'met' if met else 'missed'}**"
 
 
 def survey_verdicts() -> str:
     """Render the table of each survey's minimum-error member against RATTLE at h/2, with its goals."""
     rows = []
     for _, path in SURVEYS:
-        found = compare(path) if (DATA / FOLDER / path).is_file() else None
-        if found is not None:
-            h = found.data["timestep_fs"]
-            goal = ENERGY_GOAL.get(h) if found.data["system"] in GOAL_SYSTEMS.get(h, ()) else None
-            rows.append((path, found, goal))
+        if (found := compare(path)) is not None:
+            h = found["data"]["timestep_fs"]
+            goal = ENERGY_GOAL.get(h) if found["data"]["system"] in GOAL_SYSTEMS.get(h, ()) else None
+            rows.append({**found, "path": path, "goal": goal})
+
+    def energy(r: dict) -> str:
+        goal = r["goal"]
+        return f"{r['energy']:.2f}" + (
+            "" if goal is None else f" (≥ {goal:g}:{_verdict(r['energy'] >= goal)})"
+        )
+
+    def rescaled(r: dict) -> str:
+        if r["rescaled_fraction"] is None:
+            return "–"
+        verdict = _verdict(r["rescaled_fraction"] <= RESCALED_GOAL)
+        return f"{sig(r['rescaled_rms'])}, {sig(r['rescaled_fraction'])}{verdict}"
+
     columns = [
-        Column("survey", lambda r: _title(r[1].data, r[0]).replace("**", "")),
-        Column(
-            "`split-me`: × below RATTLE at h/2 in RMS(H − E_ref)",
-            lambda r: (
-                f"{r[1].energy:.2f}"
-                + ("" if r[2] is None else f" (≥ {r[2]:g}:")
-                + _verdict(r[2], r[2] is not None and r[1].energy >= r[2])
-                + ("" if r[2] is None else ")")
-            ),
-        ),
+        Column("survey", lambda r: _title(r["data"], r["path"]).replace("**", "")),
+        Column("`split-me`: × below RATTLE at h/2 in RMS(H − E_ref)", energy),
         Column(
             f"position error / RATTLE at h/2's (≤ {POSITION_GOAL:g})",
             lambda r: (
-                " / ".join(f"{v:.2f}" for v in r[1].positions)
-                + _verdict(POSITION_GOAL, r[1].worst_position <= POSITION_GOAL)
+                " / ".join(f"{v:.2f}" for v in r["positions"])
+                + _verdict(max(r["positions"]) <= POSITION_GOAL)
             ),
         ),
-        Column(
-            f"`split-me+rescale` RMS kJ/mol, and / RATTLE's (≤ {RESCALED_GOAL:g})",
-            lambda r: (
-                "–"
-                if r[1].rescaled_fraction is None
-                else f"{sig(r[1].rescaled_rms)}, {sig(r[1].rescaled_fraction)}"
-                + _verdict(RESCALED_GOAL, r[1].rescaled_fraction <= RESCALED_GOAL)
-            ),
-        ),
+        Column(f"`split-me+rescale` RMS kJ/mol, and / RATTLE's (≤ {RESCALED_GOAL:g})", rescaled),
     ]
     return table(rows, columns)
 
@@ -199,14 +179,10 @@ def per_picosecond() -> str:
     """Render `split-me` at 4 fs (hydrogens 3 amu) against RATTLE at 2 fs (1 amu): equal cost per ps."""
     rows = []
     for system in ("tip3p-2nm", "villin", "dhfr"):
-        four = next((p for _, p in SURVEYS if p.startswith(f"{system}_4fs")), None)
-        two_fs = f"{system}_2fs.json"
-        if four is None or not (DATA / FOLDER / four).is_file() or not (DATA / FOLDER / two_fs).is_file():
-            continue
-        me = _rows(load(FOLDER + four)[0]).get("split-me")
-        rattle = _rows(load(FOLDER + two_fs)[0]).get("RATTLE at h")
-        if me is not None and rattle is not None:
-            rows.append((system, me["rms_residual"], rattle["rms_residual"]))
+        four = next(p for _, p in SURVEYS if p.startswith(f"{system}_4fs"))
+        me = _rows(load(FOLDER + four)[0])["split-me"]
+        rattle = _rows(load(FOLDER + f"{system}_2fs.json")[0])["RATTLE at h"]
+        rows.append((system, me["rms_residual"], rattle["rms_residual"]))
     columns = [
         Column("system", lambda r: r[0]),
         Column("`split-me` at 4 fs, kJ/mol", lambda r: sig(r[1], 3)),
@@ -229,27 +205,26 @@ REPEATED = (
 
 def repeats() -> str:
     """Render the surveys run twice: RMS(H − E_ref) of RATTLE at h/2 and of `split-me`, each run."""
-    header = ["survey", "run", "RATTLE at h/2 kJ/mol", "`split=1/4`", "`split-me`", "ratio", "data"]
-    table = []
-    for first, second in REPEATED:
-        if not (DATA / FOLDER / second).is_file():
-            continue
-        for which, name in (("first", first), ("second", second)):
-            data, source = load(FOLDER + name)
+    lines = []
+    for paths in REPEATED:
+        for which, path in zip(("first", "second"), paths):
+            data, source = load(FOLDER + path)
             rows = _rows(data)
             half, quarter, me = (rows[r]["rms_residual"] for r in ("RATTLE at h/2", "split=1/4", "split-me"))
-            table.append(
+            survey = f"{data['system']}, {data['timestep_fs']:g} fs"
+            run = f"{which} ({source.date}, commit {source.commit})"
+            lines.append(
                 [
-                    f"{data['system']}, {data['timestep_fs']:g} fs",
-                    f"{which} ({source.date}, commit {source.commit})",
-                    sig(half, 3),
-                    sig(quarter, 3),
-                    sig(me, 3),
+                    survey,
+                    run,
+                    *(sig(v, 3) for v in (half, quarter, me)),
                     f"{half / me:.2f}",
                     f"`docs/data/{source.path}`",
                 ]
             )
-    return markdown_table(header, table)
+    return markdown_table(
+        "survey | run | RATTLE at h/2 kJ/mol | `split=1/4` | `split-me` | ratio | data", lines
+    )
 
 
 #: The stability scans on the page: (block name, data file, how the page names the system).
@@ -289,39 +264,28 @@ def _first_unstable(row: dict) -> str:
 def stability_table(path: str, title: str) -> str:
     """Render one stability scan: largest stable step per row, per evaluation, against RATTLE and theory."""
     data, source = load(FOLDER + path)
-    header = [
-        "integrator",
-        "evaluations / step",
-        "largest stable h (fs)",
-        "per evaluation h/k (fs)",
-        "× RATTLE's h",
-        "linear prediction (fs)",
-        "max \\|H − E_ref\\|/DOF there (kJ/mol)",
-        "the first unstable h (fs)",
+
+    def there(row: dict) -> str:
+        runs = [run for run in row["runs"] if run["stable"] and run["h_fs"] == row["largest_stable_fs"]]
+        return sig(runs[0]["max_per_dof"]) if runs else "-"
+
+    columns = [
+        Column("integrator", lambda r: _named(r["integrator"])),
+        Column("evaluations / step", "{evaluations:g}"),
+        Column("largest stable h (fs)", "**{largest_stable_fs:g}**"),
+        Column("per evaluation h/k (fs)", lambda r: f"{r['largest_stable_fs'] / r['evaluations']:.3g}"),
+        Column("× RATTLE's h", "{ratio_to_rattle:.2f}"),
+        Column("linear prediction (fs)", "{predicted_fs:.3g}"),
+        Column("max \\|H − E_ref\\|/DOF there (kJ/mol)", there),
+        Column("the first unstable h (fs)", _first_unstable),
     ]
-    table = []
-    for row in data["integrators"]:
-        h = row["largest_stable_fs"]
-        there = [run for run in row["runs"] if run["stable"] and run["h_fs"] == h]
-        table.append(
-            [
-                _named(row["integrator"]),
-                f"{row['evaluations']:g}",
-                f"**{h:g}**",
-                f"{h / row['evaluations']:.3g}",
-                f"{row['ratio_to_rattle']:.2f}",
-                f"{row['predicted_fs']:.3g}",
-                sig(there[0]["max_per_dof"]) if there else "-",
-                _first_unstable(row),
-            ]
-        )
     run = (
         f"**{title}** ({data['dof']:,} degrees of freedom; T = {data['time_ps']:g} ps, H every "
         f"{data['every']} steps, threshold {data['threshold_kt']:g} kT = "
         f"{data['threshold_kj_per_mol_per_dof']:.3f} kJ/mol per degree of freedom, edge to "
         f"{data['resolution_fs']:g} fs)"
     )
-    return provenance_line([source], run) + "\n\n" + markdown_table(header, table)
+    return table(data["integrators"], columns, provenance_line([source], run))
 
 
 #: The long runs on the page: (block name, data file of ``alphaprk bench long``).
@@ -336,17 +300,13 @@ COST = (
 def cost_table(path: str) -> str:
     """Render one ``bench cost`` run: step time against RATTLE's, per force evaluation, ns/day."""
     data, source = load(FOLDER + path)
-    header = ["integrator", "evaluations / step", "ms/step", "× RATTLE's step", "per evaluation", "ns/day"]
-    table = [
-        [
-            row["name"],
-            f"{row['force_evaluations_per_step']:g}",
-            f"{row['ms_per_step']:.3g}",
-            f"{row['time_ratio']:.2f}",
-            f"{row['ratio_per_evaluation']:.2f}",
-            f"{row['ns_per_day']:.3g}",
-        ]
-        for row in data["rows"]
+    columns = [
+        Column("integrator", "{name}"),
+        Column("evaluations / step", "{force_evaluations_per_step:g}"),
+        Column("ms/step", "{ms_per_step:.3g}"),
+        Column("× RATTLE's step", "{time_ratio:.2f}"),
+        Column("per evaluation", "{ratio_per_evaluation:.2f}"),
+        Column("ns/day", "{ns_per_day:.3g}"),
     ]
     precision = data.get("precision") or "the platform's"
     run = (
@@ -354,22 +314,16 @@ def cost_table(path: str) -> str:
         f"platform, precision {precision}** — `alphaprk bench cost`, every row in one run, rounds "
         "interleaved, with other runs on the machine's two cores"
     )
-    return provenance_line([source], run) + "\n\n" + markdown_table(header, table)
+    return table(data["rows"], columns, provenance_line([source], run))
 
 
 def render() -> dict[Path, dict[str, str]]:
-    """Every generated block of the page whose data file exists, by page and block name."""
-    blocks = {name: survey_table(path) for name, path in SURVEYS if (DATA / FOLDER / path).is_file()}
-    blocks["survey verdicts"] = survey_verdicts()
-    blocks["per picosecond"] = per_picosecond()
-    blocks["repeats"] = repeats()
-    for name, path in COST:
-        if (DATA / FOLDER / path).is_file():
-            blocks[name] = cost_table(path)
-    for name, path in LONG:
-        if (DATA / FOLDER / path).is_file():
-            blocks[name] = long_table(FOLDER + path, speed=False)
-    for name, path, title in STABILITY:
-        if (DATA / FOLDER / path).is_file():
-            blocks[name] = stability_table(path, title)
+    """Every generated block of the page, by page and block name."""
+    blocks = {name: survey_table(path) for name, path in SURVEYS}
+    blocks.update(
+        {"survey verdicts": survey_verdicts(), "per picosecond": per_picosecond(), "repeats": repeats()}
+    )
+    blocks.update({name: cost_table(path) for name, path in COST})
+    blocks.update({name: long_table(FOLDER + path, speed=False) for name, path in LONG})
+    blocks.update({name: stability_table(path, title) for name, path, title in STABILITY})
     return {PAGE: blocks}

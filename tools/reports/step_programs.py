@@ -1,21 +1,11 @@
-r"""docs/step_programs.md: the flat listing of every step program the package builds.
-
-Run from the repository root::
-
-    python -m tools.reports.step_programs
-
-One section per integrator configuration, its ``program_listing()`` (OpenMM's
-computations, numbered as OpenMM numbers them, indented by block). The docstrings of
-the integrator classes link here.
-"""
+"""docs/step_programs.md: the program listing of each configuration (``-m tools.reports.step_programs``)."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
 from openmm_alphaprk.runs.integrator_names import make_integrator
+from tools.reports.sources import DOCS
 
-PAGE = Path(__file__).resolve().parents[2] / "docs" / "step_programs.md"
+PAGE = DOCS / "step_programs.md"
 
 #: The programs the page shows, by their names in the registry (every form's listing is in
 #: tests/golden/step_programs.txt).
@@ -52,10 +42,6 @@ def page_text() -> str:
     return "\n".join(parts)
 
 
-def main() -> None:
+if __name__ == "__main__":
     PAGE.write_text(page_text(), encoding="utf-8")
     print(f"wrote {PAGE}")
-
-
-if __name__ == "__main__":
-    main()

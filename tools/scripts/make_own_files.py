@@ -34,6 +34,8 @@ def P(name):  # noqa: N802 - the output path of a file
 BOX_PEP = 2.6  # nm, cubic
 BOX_W4 = 2.4  # nm, cubic (cutoff 0.9 nm < half edge)
 SEED = 2024
+#: Every system's electrostatics: PME, cutoff 0.9 nm.
+NONBONDED = {"nonbondedMethod": app.PME, "nonbondedCutoff": 0.9 * nanometer}
 
 
 def platform():
@@ -54,69 +56,52 @@ def place(a, b, c, bond, angle_deg, torsion_deg):
     return c + d2[0] * bc + d2[1] * m + d2[2] * n
 
 
-def build_peptide_heavy(nala=3, phi=-60.0, psi=-45.0):
-    """Heavy atoms of ACE-(ALA)n-NME, coordinates in Angstrom.
+#: The heavy-atom bonds inside each residue of the peptide.
+RESIDUE_BONDS = {
+    "ACE": (("CH3", "C"), ("C", "O")),
+    "ALA": (("N", "CA"), ("CA", "C"), ("C", "O"), ("CA", "CB")),
+    "NME": (("N", "C"),),
+}
 
-    Returns list of (resname, [(atomname, element, xyz)]).
-    """
+
+def build_peptide_heavy(nala=3, phi=-60.0, psi=-45.0):
+    """Heavy atoms of ACE-(ALA)n-NME (Angstrom): a list of (resname, [(atomname, element, xyz)])."""
     # backbone chain: CH3(ACE) C(ACE) N CA C  N CA C ... N(NME) C(NME)
-    chain = []  # (res_index, name)
-    chain.append((0, "CH3"))
-    chain.append((0, "C"))
-    for i in range(1, nala + 1):
-        chain += [(i, "N"), (i, "CA"), (i, "C")]
+    chain = [(0, "CH3"), (0, "C")] + [(i, name) for i in range(1, nala + 1) for name in ("N", "CA", "C")]
     chain += [(nala + 1, "N"), (nala + 1, "C")]
+    angle = np.radians(116.0)
     xyz = [np.array([0.0, 0.0, 0.0]), np.array([1.52, 0.0, 0.0])]
-    # third atom (N of ALA1)
-    ang = np.radians(116.0)
-    xyz.append(xyz[1] + 1.33 * np.array([-np.cos(ang), np.sin(ang), 0.0]))
-    bond_len = {("C", "N"): 1.33, ("N", "CA"): 1.46, ("CA", "C"): 1.52, ("N", "C"): 1.46}
+    xyz.append(xyz[1] + 1.33 * np.array([-np.cos(angle), np.sin(angle), 0.0]))  # N of ALA1
+    bonds = {("C", "N"): 1.33, ("N", "CA"): 1.46, ("CA", "C"): 1.52, ("N", "C"): 1.46}  # N-C: NME's methyl
     angles = {"N": 116.0, "CA": 122.0, "C": 111.0}
+    # the torsion a-b-c-d of the new bond c-d is about b-c: phi, psi, else 180 (omega, the peptide bond)
+    torsions = {("N", "CA"): phi, ("CA", "C"): psi}
     for k in range(3, len(chain)):
-        prev_name = chain[k - 1][1]
-        name = chain[k][1]
-        ridx = chain[k][0]
-        # torsion a-b-c-d where the c-d bond is new: the torsion is about bond b-c
-        bname, cname = chain[k - 2][1], chain[k - 1][1]
-        if (bname, cname) == ("C", "N"):  # rotation about peptide bond: omega
-            tor = 180.0
-        elif (bname, cname) == ("N", "CA"):  # phi
-            tor = phi
-        elif (bname, cname) == ("CA", "C"):  # psi
-            tor = psi
-        else:
-            tor = 180.0
-        if name == "C" and ridx == nala + 1:
-            bl = 1.46  # N-CH3 of NME
-        else:
-            bl = bond_len[(prev_name, name)]
-        angle = angles[prev_name]
-        xyz.append(place(xyz[k - 3], xyz[k - 2], xyz[k - 1], bl, angle, tor))
-    pos = {chain[k]: xyz[k] for k in range(len(chain))}
+        b, c, d = chain[k - 2][1], chain[k - 1][1], chain[k][1]
+        xyz.append(
+            place(xyz[k - 3], xyz[k - 2], xyz[k - 1], bonds[(c, d)], angles[c], torsions.get((b, c), 180.0))
+        )
+    pos = dict(zip(chain, xyz))
 
     def carbonyl_O(cpos, prev, nxt):
         u = (cpos - prev) / np.linalg.norm(cpos - prev) + (cpos - nxt) / np.linalg.norm(cpos - nxt)
         return cpos + 1.23 * u / np.linalg.norm(u)
 
-    residues = []
-    # ACE
-    residues.append(
+    ace = pos[(0, "C")]
+    residues = [
         (
             "ACE",
             [
                 ("CH3", "C", pos[(0, "CH3")]),
-                ("C", "C", pos[(0, "C")]),
-                ("O", "O", carbonyl_O(pos[(0, "C")], pos[(0, "CH3")], pos[(1, "N")])),
+                ("C", "C", ace),
+                ("O", "O", carbonyl_O(ace, pos[(0, "CH3")], pos[(1, "N")])),
             ],
         )
-    )
+    ]
     for i in range(1, nala + 1):
         n, ca, c = pos[(i, "N")], pos[(i, "CA")], pos[(i, "C")]
         o = carbonyl_O(c, ca, pos[(i + 1, "N")])
-        b = ca - n
-        cc = c - ca
-        a = np.cross(b, cc)
-        cb = -0.58273431 * a + 0.56802827 * b - 0.54067466 * cc + ca
+        cb = -0.58273431 * np.cross(ca - n, c - ca) + 0.56802827 * (ca - n) - 0.54067466 * (c - ca) + ca
         residues.append(
             ("ALA", [("N", "N", n), ("CA", "C", ca), ("C", "C", c), ("O", "O", o), ("CB", "C", cb)])
         )
@@ -125,31 +110,22 @@ def build_peptide_heavy(nala=3, phi=-60.0, psi=-45.0):
 
 
 def heavy_topology():
-    residues = build_peptide_heavy()
+    """Return the peptide's heavy atoms as a Topology (with their bonds) and their positions."""
     top = app.Topology()
     chain = top.addChain()
     positions = []
-    prevC = None
-    for resname, atoms in residues:
+    previous_c = None
+    for resname, atoms in build_peptide_heavy():
         res = top.addResidue(resname, chain)
         amap = {}
         for name, el, xyz in atoms:
             amap[name] = top.addAtom(name, app.Element.getBySymbol(el), res)
             positions.append(openmm.Vec3(*xyz) * 0.1)
-        # intra-residue heavy-atom bonds
-        if resname == "ACE":
-            top.addBond(amap["CH3"], amap["C"])
-            top.addBond(amap["C"], amap["O"])
-        elif resname == "ALA":
-            top.addBond(amap["N"], amap["CA"])
-            top.addBond(amap["CA"], amap["C"])
-            top.addBond(amap["C"], amap["O"])
-            top.addBond(amap["CA"], amap["CB"])
-        elif resname == "NME":
-            top.addBond(amap["N"], amap["C"])
-        if prevC is not None:
-            top.addBond(prevC, amap["N"])
-        prevC = amap["C"] if resname != "NME" else None
+        for a, b in RESIDUE_BONDS[resname]:
+            top.addBond(amap[a], amap[b])
+        if previous_c is not None:
+            top.addBond(previous_c, amap["N"])
+        previous_c = amap["C"] if resname != "NME" else None
     return top, positions * nanometer
 
 
@@ -221,13 +197,7 @@ def main(argv: list[str] | None = None) -> None:
     )
     print("peptide system atoms:", mod.topology.getNumAtoms(), "residues:", mod.topology.getNumResidues())
 
-    sys_md = ff.createSystem(
-        mod.topology,
-        nonbondedMethod=app.PME,
-        nonbondedCutoff=0.9 * nanometer,
-        constraints=app.HBonds,
-        rigidWater=True,
-    )
+    sys_md = ff.createSystem(mod.topology, constraints=app.HBonds, rigidWater=True, **NONBONDED)
     sim = relaxed(mod, sys_md, minimize_iterations=2000, steps=2000)  # 4 ps
     st = sim.context.getState(getPositions=True, getVelocities=True, getEnergy=True, enforcePeriodicBox=True)
     positions = st.getPositions(asNumpy=True)
@@ -243,9 +213,7 @@ def main(argv: list[str] | None = None) -> None:
     print(f"ForceField(HBonds) energy at final positions: {e_ff:.3f} kJ/mol")
 
     # ---------------- 2. AMBER
-    sys_flex = ff.createSystem(
-        topology, nonbondedMethod=app.PME, nonbondedCutoff=0.9 * nanometer, constraints=None, rigidWater=False
-    )
+    sys_flex = ff.createSystem(topology, constraints=None, rigidWater=False, **NONBONDED)
     struct = parmed.openmm.load_topology(topology, sys_flex, xyz=positions)
     # load_topology names atom types after unique LJ parameters (C1, H1, ...), which merges
     # Amber atom classes with equal LJ but different bonded parameters.  Rename them to the
@@ -264,9 +232,6 @@ def main(argv: list[str] | None = None) -> None:
             struct.bonds.append(parmed.Bond(hs[0], hs[1], type=hh))
     bv = np.array([[v.x, v.y, v.z] for v in box.value_in_unit(angstrom)])
     struct.box = [bv[0, 0], bv[1, 1], bv[2, 2], 90.0, 90.0, 90.0]
-    for f in ("peptide.prmtop", "peptide.inpcrd"):
-        if os.path.exists(P(f)):
-            os.remove(P(f))
     struct.save(P("peptide.prmtop"), overwrite=True)
     struct.save(P("peptide.inpcrd"), overwrite=True)
 
@@ -277,8 +242,7 @@ def main(argv: list[str] | None = None) -> None:
     rst.coordinates = positions.value_in_unit(angstrom)
     rst.vels = velocities.value_in_unit(angstrom / picosecond).reshape(-1)
     rst.box = struct.box
-    rst.write(P("peptide_vel.rst7"))
-    pass  # velocities checked by tests/test_own_formats.py
+    rst.write(P("peptide_vel.rst7"))  # velocities checked by tests/test_own_formats.py
 
     # ---------------- 3. CHARMM (from the Amber-parameterized structure)
     amb = parmed.load_file(P("peptide.prmtop"), P("peptide.inpcrd"))
@@ -341,9 +305,7 @@ def main(argv: list[str] | None = None) -> None:
     ff4 = app.ForceField("amber14/tip4pew.xml")
     m4 = app.Modeller(app.Topology(), [])
     m4.addSolvent(ff4, model="tip4pew", boxSize=openmm.Vec3(BOX_W4, BOX_W4, BOX_W4) * nanometer)
-    s4 = ff4.createSystem(
-        m4.topology, nonbondedMethod=app.PME, nonbondedCutoff=0.9 * nanometer, removeCMMotion=False
-    )
+    s4 = ff4.createSystem(m4.topology, removeCMMotion=False, **NONBONDED)
     sim4 = relaxed(m4, s4, minimize_iterations=1000, steps=500)  # 1 ps
     st4 = sim4.context.getState(
         getPositions=True, getVelocities=True, getEnergy=True, enforcePeriodicBox=True

@@ -85,16 +85,6 @@ def row_entry(label: str, name: str, divisor: int, run, errors, started: float, 
     }
 
 
-def print_row(entry: dict, width: int) -> None:
-    """Print a row of :func:`row_entry` as one line: cost, RMS(H − E_ref), position errors."""
-    print(
-        f"{entry['row']:{width}} evals {entry['evaluations']:5.2f} RMS {entry['rms_residual']:.3g}  x err "
-        + " / ".join(f"{e:.2g}" for e in entry["position_rms"])
-        + (f"  blew up at step {entry['blew_up_at_step']}" if entry["blew_up_at_step"] else ""),
-        flush=True,
-    )
-
-
 def parser() -> argparse.ArgumentParser:
     """Return the command line's parser."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -124,50 +114,41 @@ def main(argv: list[str] | None = None) -> None:
     box = periodic_box(prepared)
     started = time.perf_counter()
     properties = {"Precision": args.precision} if args.precision else {}
-    ref = run_trajectory(
-        prepared,
-        reference(h, args.reference_divisor),
-        horizons,
-        platform=args.platform,
-        properties=properties,
-        read_energy=False,
+    run = partial(run_trajectory, prepared, platform=args.platform, properties=properties)
+    ref = run(reference(h, args.reference_divisor), horizons, read_energy=False)
+    print(
+        f"reference RATTLE at h/{args.reference_divisor}: {time.perf_counter() - started:.0f} s", flush=True
     )
-    seconds = time.perf_counter() - started
-    print(f"reference RATTLE at h/{args.reference_divisor}: {seconds:.0f} s", flush=True)
     rows = []
     chosen = [row for row in ROWS + ORDER4_ROWS if row[0] in args.rows] if args.rows else ROWS
     for label, name, divisor in chosen:
         started = time.perf_counter()
-        run = run_trajectory(
-            prepared,
-            row_integrator(name, h, divisor),
-            [*horizons, args.steps],
-            platform=args.platform,
-            properties=properties,
+        result = run(row_integrator(name, h, divisor), [*horizons, args.steps])
+        errors = horizon_errors(result, ref, box, args.timestep)
+        rows.append(row_entry(label, name, divisor, result, errors, started))
+        print(
+            f"{label:16} evals {rows[-1]['evaluations']:5.2f} RMS {rows[-1]['rms_residual']:.3g}  x err "
+            + " / ".join(f"{e.position_rms:.2g}" for e in errors)
+            + (f"  blew up at step {result.blew_up_at_step}" if result.blew_up_at_step else ""),
+            flush=True,
         )
-        entry = row_entry(label, name, divisor, run, horizon_errors(run, ref, box, args.timestep), started)
-        rows.append(entry)
-        print_row(entry, 16)
     if args.json:
+        survey = {
+            "system": args.system,
+            "timestep_fs": args.timestep,
+            "hydrogen_mass_amu": args.hydrogen_mass,
+            "start": f"{prepared.name} ({prepared.source})",
+            "steps": args.steps,
+            "horizons": horizons,
+            "platform": args.platform,
+            "precision": args.precision,
+            "openmm": mm.__version__,
+            "python": platform.python_version(),
+            "reference": f"RATTLE at h/{args.reference_divisor}, constraint tolerance 1e-10",
+            "rows": rows,
+        }
         with open(args.json, "w") as handle:
-            json.dump(
-                {
-                    "system": args.system,
-                    "timestep_fs": args.timestep,
-                    "hydrogen_mass_amu": args.hydrogen_mass,
-                    "start": f"{prepared.name} ({prepared.source})",
-                    "steps": args.steps,
-                    "horizons": horizons,
-                    "platform": args.platform,
-                    "precision": args.precision,
-                    "openmm": mm.__version__,
-                    "python": platform.python_version(),
-                    "reference": f"RATTLE at h/{args.reference_divisor}, constraint tolerance 1e-10",
-                    "rows": rows,
-                },
-                handle,
-                indent=1,
-            )
+            json.dump(survey, handle, indent=1)
 
 
 if __name__ == "__main__":
