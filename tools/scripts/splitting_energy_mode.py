@@ -37,8 +37,13 @@ from openmm_alphaprk.runs.accuracy import (
 from openmm_alphaprk.runs.integrator_names import SubStepped, at_divisor
 from openmm_alphaprk.systems import prepare_system
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))  # the survey beside this script
-from splitting_survey import HORIZONS, print_row, row_entry  # noqa: E402
+
+def print_row(entry: dict) -> None:
+    """Print a row: cost, RMS(H − E_ref), position errors at the horizons."""
+    errors = " / ".join(f"{e:.2g}" for e in entry["position_rms"])
+    cost = f"evals {entry['evaluations']:5.2f} RMS {entry['rms_residual']:.3g}"
+    print(f"{entry['row']:36} {cost}  x err {errors}", flush=True)
+
 
 DEFAULT_ROWS = (
     "split-me",
@@ -61,6 +66,9 @@ def parse_rows(specs: list[str]) -> list[tuple[str, str, int]]:
 
 
 def main(argv: list[str] | None = None) -> None:
+    sys.path.insert(0, str(Path(__file__).resolve().parent))  # the survey beside this script
+    from splitting_survey import HORIZONS, row_entry
+
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--system", default="tip3p-2nm")
     parser.add_argument("--timestep", type=float, default=2.0, help="fs")
@@ -100,14 +108,14 @@ def main(argv: list[str] | None = None) -> None:
             "fraction_missed": totals["fraction_fallen_back"],
         }
         rows.append(row_entry(label, "split-energy", 1, run, errors, started, **extra))
-        print_row(rows[-1], 36)
+        print_row(rows[-1])
     for label, name, divisor in parse_rows(args.rows):
         started = time.perf_counter()
         run = run_trajectory(prepared, at_divisor(name, h, divisor), runs, platform=args.platform)
         rows.append(
             row_entry(label, name, divisor, run, horizon_errors(run, ref, box, args.timestep), started)
         )
-        print_row(rows[-1], 36)
+        print_row(rows[-1])
     if args.json:
         document = {
             "system": args.system,
