@@ -59,6 +59,8 @@ INTEGRATORS = {
     # the rescaling layer over the alpha base (its midpoint loop after the reference check)
     "alpha=1/6+rescale": lambda: RattleRescaleIntegrator(H, alpha=1 / 6),
     "alpha4=0.05+rescale": lambda: RattleRescaleIntegrator(H, alpha=0.05, order=4),
+    # and every second step: one copy of the α loop, the rescaling after it at steps 2 and 4
+    "alpha=1/6+rescale@2": lambda: RattleRescaleIntegrator(H, alpha=1 / 6, rescale_interval=2),
     # the energy modes with α pinned to a point: their trials, restarts and midpoint
     # passes, with the controller's choices taken out of the comparison (a tolerance every
     # trial meets: a step that missed would choose between its α trial and the α = 0 step by
@@ -481,8 +483,10 @@ def _rattle_repeatability(box, spec, steps):
 
 #: Programs over the block budget, and their count: the rescaling after a fixed α, no name of
 #: the command line (its first step on pocl, the water cluster: 8.7 s, 10.0 s with order 4,
-#: against rattle+rescale's 8.1 s; its reference step is checked like every program's).
-OVER_BUDGET = {"alpha=1/6+rescale": 8, "alpha4=0.05+rescale": 7}
+#: against rattle+rescale's 8.1 s; every second step, 9 blocks: 13.4 s against 13.1 s and 14.0 s
+#: for the two in a later run with a test suite beside it; its reference step is checked like
+#: every program's).
+OVER_BUDGET = {"alpha=1/6+rescale": 8, "alpha4=0.05+rescale": 7, "alpha=1/6+rescale@2": 9}
 
 
 @pytest.mark.parametrize("name", list(INTEGRATORS))

@@ -629,8 +629,10 @@ def test_a_step_between_rescalings_is_the_unrescaled_integrators_step(options, u
 @pytest.mark.parametrize(
     "options",
     [{}, {"rescale_interval": 10}, {"order": 4}, {"order": 4, "rescale_interval": 10}, {"splitting": "me2"}]
-    + [{"splitting": "me2", "rescale_interval": 10}, {"alpha": 0.1}],
-    ids=["rattle", "rattle@10", "rattle4", "rattle4@10", "split-me", "split-me@10", "alpha"],
+    + [{"splitting": "me2", "rescale_interval": 10}, {"alpha": 0.1}, {"alpha": 0.1, "rescale_interval": 10}]
+    + [{"alpha": 0.01, "order": 4, "rescale_interval": 10}],
+    ids=["rattle", "rattle@10", "rattle4", "rattle4@10", "split-me", "split-me@10", "alpha", "alpha@10"]
+    + ["alpha4@10"],
 )
 def test_no_force_is_read_after_an_energy_read_before_the_positions_change(options):
     """In program text, after every read of ``energy`` the positions change before ``f`` is read.
@@ -851,8 +853,32 @@ def test_rescaling_after_a_fixed_alpha_is_alpha_rattles_step_with_the_energy_hel
     assert isinstance(restored, RattleRescaleIntegrator) and restored.alpha == options["alpha"]
     with pytest.raises(ValueError, match="split=α"):
         RattleRescaleIntegrator(H, alpha=0.1, splitting="me2")
-    with pytest.raises(ValueError, match="rescale_interval=1 with alpha"):
-        RattleRescaleIntegrator(H, alpha=0.1, rescale_interval=10)
+
+
+@pytest.mark.parametrize("options", [{"alpha": 0.1}, {"alpha": 0.01, "order": 4}])
+def test_rescaling_every_fifth_step_after_a_fixed_alpha_takes_alpha_rattles_steps_between(options):
+    """the interval over the α base: four steps α-RATTLE's to the bit, the fifth's positions too, H held."""
+    from openmm_alphaprk.systems import prepare_system
+
+    water = prepare_system("water-cluster")
+    held = RattleRescaleIntegrator(H, rescale_interval=5, **options)
+    plain = AlphaRattleIntegrator(H, **options)
+    contexts = []
+    for integrator in (held, plain):
+        context = mm.Context(water.system, integrator, REFERENCE)
+        context.setState(water.state)
+        contexts.append(context)
+    for step in range(1, 6):
+        held.step(1)
+        plain.step(1)
+        np.testing.assert_array_equal(positions_of(contexts[0]), positions_of(contexts[1]))
+        if step < 5:
+            np.testing.assert_array_equal(velocities_of(contexts[0]), velocities_of(contexts[1]))
+    assert held.rescalings == 1 and held.velocity_scale != 1.0
+    held.step(5)
+    state = contexts[0].getState(getEnergy=True)
+    residual = state.getKineticEnergy() + state.getPotentialEnergy() - held.reference_energy
+    assert abs(residual) < held.energy_tolerance and held.rescalings == 2
 
 
 def test_rescaling_after_a_fixed_alpha_loses_to_rescaled_rattle_at_equal_evaluations():

@@ -33,6 +33,9 @@ INTEGRATORS = {
     "RattleRescaleIntegrator(0.002, alpha=0.01, order=4)": lambda: RattleRescaleIntegrator(
         0.002, alpha=0.01, order=4
     ),
+    "RattleRescaleIntegrator(0.002, alpha=0.1, rescale_interval=10)": lambda: RattleRescaleIntegrator(
+        0.002, alpha=0.1, rescale_interval=10
+    ),
     "AlphaRattleEnergyIntegrator(0.002, splitting='me2')": lambda: AlphaRattleEnergyIntegrator(
         0.002, splitting="me2"
     ),
