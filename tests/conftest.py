@@ -18,7 +18,7 @@ import openmm.unit as unit
 import pytest
 from quick_systems import TEST_STATES, TIP4PEW_BOX, WATER_BOX, stored_water_box
 
-from openmm_alphaprk import observables
+from openmm_alphaprk import RattleIntegrator, observables
 from openmm_alphaprk.systems import CACHE_ENV, prepare_system
 
 REFERENCE = mm.Platform.getPlatformByName("Reference")
@@ -107,7 +107,6 @@ def rattle_residuals_on_the_water_box(water_box, request) -> np.ndarray:
     One run for the session: Reference repeats a run bitwise, so its first n residuals
     are those of an n-step run from the same start.
     """
-    from openmm_alphaprk import RattleIntegrator
 
     def run():
         problem = water_box.system, water_box.positions, water_box.velocities
@@ -229,6 +228,33 @@ constraint_errors = observables.system_constraint_errors
 _FORCE_OR_ENERGY = re.compile(r"\b(f|energy)\d*\b")
 _INVALIDATES = (mm.CustomIntegrator.ConstrainPositions, mm.CustomIntegrator.UpdateContextState)
 _BLOCK_STARTS = (mm.CustomIntegrator.IfBlockStart, mm.CustomIntegrator.WhileBlockStart)
+
+
+def path_on_the_water_cluster(
+    steps: int = 50, h: float = 0.002
+) -> Callable[[mm.Integrator, int], tuple[float, float]]:
+    """Return ``error(integrator, k)``: its RMS position error after ``steps`` steps of h, and its cost.
+
+    ``integrator`` runs at h/k, k steps a step of h, from the shipped water cluster's start on
+    the CPU platform; the error is against RATTLE at h/64 (nm per atom), the cost its force
+    evaluations per step of h. The equal-cost comparisons of a combination no name offers.
+    """
+    water = prepare_system("water-cluster")
+    cpu = mm.Platform.getPlatformByName("CPU")
+
+    def end(integrator: mm.Integrator, k: int) -> tuple[np.ndarray, float]:
+        context = mm.Context(water.system, integrator, cpu)
+        context.setState(water.state)
+        integrator.step(steps * k)
+        return positions_of(context), integrator.force_evaluations_per_step * k
+
+    reference, _ = end(RattleIntegrator(h / 64), 64)
+
+    def error(integrator: mm.Integrator, k: int) -> tuple[float, float]:
+        x, cost = end(integrator, k)
+        return float(np.sqrt(((x - reference) ** 2).sum(axis=1).mean())), cost
+
+    return error
 
 
 def analysed_blocks(integrator: mm.CustomIntegrator) -> int:

@@ -6,7 +6,15 @@ import numpy as np
 import openmm as mm
 import openmm.unit as unit
 import pytest
-from conftest import REFERENCE, constraint_errors, counting, positions_of, total_energy, velocities_of
+from conftest import (
+    REFERENCE,
+    constraint_errors,
+    counting,
+    path_on_the_water_cluster,
+    positions_of,
+    total_energy,
+    velocities_of,
+)
 from platform_options import configured, platform_and_properties
 
 from openmm_alphaprk import (
@@ -883,28 +891,12 @@ def test_rescaling_every_fifth_step_after_a_fixed_alpha_takes_alpha_rattles_step
 
 def test_rescaling_after_a_fixed_alpha_loses_to_rescaled_rattle_at_equal_evaluations():
     """why alpha=...+rescale is no name of the grammar (docs/integrators.md): farther from the true path."""
-    from openmm_alphaprk.systems import prepare_system
-
-    water = prepare_system("water-cluster")
-    cpu = mm.Platform.getPlatformByName("CPU")
-    steps = 50
-
-    def end(integrator, k):
-        context = mm.Context(water.system, integrator, cpu)
-        context.setState(water.state)
-        integrator.step(steps * k)
-        return positions_of(context), integrator.force_evaluations_per_step * k
-
-    reference, _ = end(RattleIntegrator(H / 64), 64)
-
-    def error(x):
-        return float(np.sqrt(((x - reference) ** 2).sum(axis=1).mean()))
-
-    alpha_x, alpha_cost = end(RattleRescaleIntegrator(H, alpha=0.1), 1)
+    error = path_on_the_water_cluster()
+    alpha_error, alpha_cost = error(RattleRescaleIntegrator(H, alpha=0.1), 1)
     k = round(alpha_cost)
-    rattle_x, rattle_cost = end(RattleRescaleIntegrator(H / k), k)
+    rattle_error, rattle_cost = error(RattleRescaleIntegrator(H / k), k)
     assert rattle_cost <= alpha_cost
-    assert error(rattle_x) < error(alpha_x) / 4
+    assert rattle_error < alpha_error / 4
 
 
 def test_rescaling_after_a_fixed_alpha_raises_when_the_midpoint_iteration_fails():

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import openmm as mm
 import pytest
-from conftest import counting, make_context, positions_of, velocities_of
+from conftest import counting, make_context, path_on_the_water_cluster, positions_of, velocities_of
 
 from openmm_alphaprk import (
     AlphaRattleEnergyIntegrator,
@@ -119,30 +119,14 @@ def test_the_controller_holds_the_energy_on_the_water_box(water_box):
 
 def test_it_loses_to_rescaled_rattle_and_the_rescaled_splitting_at_equal_evaluations():
     """Why the energy mode over a splitting is no name of the grammar (docs/energy_mode.md)."""
-    from openmm_alphaprk.systems import prepare_system
-
-    water = prepare_system("water-cluster")
-    cpu = mm.Platform.getPlatformByName("CPU")
-    steps = 50
-
-    def end(integrator, k):
-        context = mm.Context(water.system, integrator, cpu)
-        context.setState(water.state)
-        integrator.step(steps * k)
-        return positions_of(context), integrator.force_evaluations_per_step * k
-
-    reference, _ = end(RattleIntegrator(H / 64), 64)
-
-    def error(x):
-        return float(np.sqrt(((x - reference) ** 2).sum(axis=1).mean()))
-
-    energy_x, energy_cost = end(AlphaRattleEnergyIntegrator(H, splitting="me2"), 1)
+    error = path_on_the_water_cluster()
+    energy_error, energy_cost = error(AlphaRattleEnergyIntegrator(H, splitting="me2"), 1)
     k = int(energy_cost)  # RATTLE at h/k costs no more than the energy mode (measured 3.6 per step)
-    rattle_x, rattle_cost = end(RattleRescaleIntegrator(H / k), k)
-    split_x, split_cost = end(RattleRescaleIntegrator(H, splitting="me2"), 1)
+    rattle_error, rattle_cost = error(RattleRescaleIntegrator(H / k), k)
+    split_error, split_cost = error(RattleRescaleIntegrator(H, splitting="me2"), 1)
     assert rattle_cost <= energy_cost and split_cost < energy_cost
-    assert error(rattle_x) < error(energy_x) / 2  # measured 2.7x closer
-    assert error(split_x) < error(energy_x)  # the splitting it moves away from, rescaled: as close, cheaper
+    assert rattle_error < energy_error / 2  # measured 2.7x closer
+    assert split_error < energy_error  # the splitting it moves away from, rescaled: as close, cheaper
 
 
 def test_it_is_restored_from_xml_with_its_splitting():
