@@ -287,3 +287,45 @@ def test_cuda_check_runs_its_commands_with_arguments_the_package_accepts(tmp_pat
     assert len(surveys) == 2 and all(s[s.index("--precision") + 1] == "mixed" for s in surveys)
     assert {p.name for p in out.iterdir()} == {"log.txt", "long.tar.gz", "cost.tar.gz", "physics.json"}
     assert "done in" in (out / "log.txt").read_text(encoding="utf-8")
+
+
+def test_the_half_kick_rescaling_holds_u_plus_k_plus_the_half_kicks_kinetic_energy():
+    """tools/scripts/half_kick_estimator.py's integrator (docs/physics.md): U + K + K_a at E_ref every step.
+
+    K_a computed here on its own: the velocities set to ½hF/m and projected by OpenMM's
+    ``applyVelocityConstraints`` in a second Context at the same positions.
+    """
+    import numpy as np
+    import openmm as mm
+
+    from openmm_alphaprk.systems import prepare_system
+
+    spec = importlib.util.spec_from_file_location("half_kick_estimator", SCRIPTS / "half_kick_estimator.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    water = prepare_system("water-cluster")
+    h = 0.002
+    integrator = module.HalfKickRescaleIntegrator(h)
+    platform = mm.Platform.getPlatformByName("Reference")
+    context = mm.Context(water.system, integrator, platform)
+    context.setState(water.state)
+    e_ref = None
+    probe = mm.Context(water.system, mm.VerletIntegrator(h), platform)
+    for _ in range(5):
+        integrator.step(4)
+        state = context.getState(getPositions=True, getForces=True, getEnergy=True)
+        masses = np.array(
+            [water.system.getParticleMass(i)._value for i in range(water.system.getNumParticles())]
+        )
+        forces = state.getForces(asNumpy=True)._value
+        probe.setPositions(state.getPositions())
+        probe.setVelocities(0.5 * h * forces / masses[:, None])
+        probe.applyVelocityConstraints(1e-10)
+        kick = probe.getState(getVelocities=True).getVelocities(asNumpy=True)._value
+        half_kick = 0.5 * float((masses[:, None] * kick**2).sum())  # not the State's: a Verlet time-shift
+        held = state.getPotentialEnergy()._value + state.getKineticEnergy()._value + half_kick
+        e_ref = integrator.reference_energy._value if e_ref is None else e_ref
+        assert abs(held - e_ref) < 1e-6 * abs(e_ref), (held, e_ref)
+        assert (
+            half_kick > 0 and abs(integrator.getGlobalVariableByName("half_kick_energy") - half_kick) < 1e-6
+        )
