@@ -27,8 +27,9 @@ Modules:
   splittings, their coefficients and sources;
 - :mod:`~.alpha_rattle`: :class:`AlphaRattleIntegrator` (fixed α, one step or a
   composition) and its two programs;
-- :mod:`~.energy_mode`: :class:`AlphaRattleEnergyIntegrator` (the energy mode), its two
-  programs and the controller's pieces; :mod:`~.energy_settings`: its settings and defaults;
+- :mod:`~.energy_controller`: the energy mode's controller, a layer over any base step with a
+  parameter α; :mod:`~.energy_mode`: :class:`AlphaRattleEnergyIntegrator` (the energy mode)
+  and its bases' trials; :mod:`~.energy_settings`: its settings and defaults;
 - :mod:`~.variables`: the names of the globals read from outside a program;
   :mod:`~.restore`: :func:`restore_integrator`.
 """

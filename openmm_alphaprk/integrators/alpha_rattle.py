@@ -10,7 +10,8 @@ The classes (the pieces they are built from are in :mod:`~.pieces`)::
       └ AlphaRattleEnergyIntegrator   energy_mode.py: α chosen every step to hold the energy
 
 The energy mode is its own class, :class:`~.energy_mode.AlphaRattleEnergyIntegrator`
-(its programs and controller are in :mod:`~.energy_mode`), beside the fixed-α class on
+(its programs are in :mod:`~.energy_mode`, its controller in :mod:`~.energy_controller`),
+beside the fixed-α class on
 the private base :class:`_AlphaRattleBase`; this module does not import it. The two
 fixed-α programs (one step, or a composition) are the ``_build_*`` methods below; a
 composition's program runs its stages from the first α stage in one loop

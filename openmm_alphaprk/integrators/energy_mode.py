@@ -68,11 +68,12 @@ class AlphaRattleEnergyIntegrator(_EnergyController, _AlphaRattleBase):
 
     Each step is a member of the α-RATTLE family (the fixed-α class's sibling on their
     shared private base, not a subclass of :class:`~.alpha_rattle.AlphaRattleIntegrator`)
-    whose α (on one stage of a composition)
-    the controller of this module's docstring chooses so that the total energy after the
+    whose α (on one stage of a composition; or a two-stage splitting's member, ``splitting=``)
+    the controller of :mod:`~.energy_controller` chooses so that the total energy after the
     step equals E_ref, the energy of the state the run started from (taken and reset by
     the rule of :mod:`~.reference_energy`). Constraints and linear momentum are kept
-    exactly and angular momentum to the midpoint tolerance; symplecticity is given up.
+    exactly and angular momentum to the midpoint tolerance (exactly over a splitting);
+    symplecticity is given up.
     The program runs NVE: it has no update-context-state step, so barostats, thermostats
     and a ``CMMotionRemover`` do not act (:meth:`check_context` warns about them).
     :meth:`program_listing` prints the program; docs/step_programs.md lists it.
