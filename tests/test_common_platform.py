@@ -148,6 +148,31 @@ def test_every_integrator_takes_the_reference_step(water_box, spec, name, reques
         assert np.max(np.abs(positions_of(context) - results[0])) > 100 * AGREEMENT["double"]
 
 
+def _falls_back_every_step_as_on_reference(water_box, spec, make, base, trials):
+    """Three steps of the energy mode ``make()`` whose α trials miss: each ends in its α = 0 trial.
+
+    The positions must follow Reference on the platform, and be ``base``'s steps on Reference;
+    ``trials``: the α trials each step takes before its α = 0 trial.
+    """
+    results = []
+    for platform in ("Reference", spec):
+        integrator = make()
+        context = _context(water_box.system, integrator, platform, water_box.positions, water_box.velocities)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", EnergyHoldWarning)
+            for _ in range(3):
+                integrator.step(1)
+                assert integrator.getGlobalVariableByName("zero_trial") == 1, platform
+                assert integrator.trials == trials and integrator.alpha == 0
+        results.append(positions_of(context))
+    plain = base()
+    context = _context(water_box.system, plain, "Reference", water_box.positions, water_box.velocities)
+    plain.step(3)
+    results.append(positions_of(context))
+    assert np.max(np.abs(results[0] - results[1])) < AGREEMENT[spec.partition(":")[2]]
+    assert np.max(np.abs(results[0] - results[2])) < AGREEMENT["double"]
+
+
 @pytest.mark.parametrize("spec", configured())
 def test_steps_the_alpha_trials_cannot_hold_continue_as_on_reference(water_box, spec):
     """Order-4 energy mode whose α trials (α = 0.2, then 0.4 at the bound) miss every step.
@@ -159,35 +184,16 @@ def test_steps_the_alpha_trials_cannot_hold_continue_as_on_reference(water_box, 
     apart beside single precision's energy noise (~0.01 kJ/mol here), so the α trials never
     end closer to E_ref and the step is the triple jump's α = 0 step on every platform.
     """
-    results = []
-    for platform in ("Reference", spec):
-        integrator = AlphaRattleEnergyIntegrator(
-            H,
-            order=4,
-            composition="triple-jump",
-            controller=ControllerSettings(
-                max_trials=2,
-                alpha_bounds=(0.2, 0.4),
-                alpha_probe=0.2,
-                max_alpha_change=0.2,
-                energy_tolerance=1e-9,
-            ),
-        )
-        context = _context(water_box.system, integrator, platform, water_box.positions, water_box.velocities)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", EnergyHoldWarning)
-            for _ in range(3):
-                integrator.step(1)
-                assert integrator.getGlobalVariableByName("zero_trial") == 1, platform
-                assert integrator.alpha == 0
-        results.append(positions_of(context))
-    triple_jump = AlphaRattleIntegrator(H, alpha=0.0, composition="triple-jump")
-    context = _context(water_box.system, triple_jump, "Reference", water_box.positions, water_box.velocities)
-    triple_jump.step(3)
-    results.append(positions_of(context))
-    bound = AGREEMENT[spec.partition(":")[2]]
-    assert np.max(np.abs(results[0] - results[1])) < bound
-    assert np.max(np.abs(results[0] - results[2])) < AGREEMENT["double"]
+    settings = ControllerSettings(
+        max_trials=2, alpha_bounds=(0.2, 0.4), alpha_probe=0.2, max_alpha_change=0.2, energy_tolerance=1e-9
+    )
+    _falls_back_every_step_as_on_reference(
+        water_box,
+        spec,
+        lambda: AlphaRattleEnergyIntegrator(H, order=4, composition="triple-jump", controller=settings),
+        lambda: AlphaRattleIntegrator(H, alpha=0.0, composition="triple-jump"),
+        trials=2,
+    )
 
 
 @pytest.mark.parametrize("spec", configured())
@@ -201,27 +207,14 @@ def test_a_splittings_trials_restart_from_the_step_start_as_on_reference(water_b
     0.034-0.16 kJ/mol against 0.004-0.009), far beyond the platform's energy noise. So the steps
     are split-me's on every platform.
     """
-    results = []
-    for platform in ("Reference", spec):
-        integrator = AlphaRattleEnergyIntegrator(
-            H,
-            splitting="me2",
-            controller=ControllerSettings(max_trials=2, alpha_bounds=(0.15, 0.19), energy_tolerance=1e-9),
-        )
-        context = _context(water_box.system, integrator, platform, water_box.positions, water_box.velocities)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", EnergyHoldWarning)
-            for _ in range(3):
-                integrator.step(1)
-                assert integrator.getGlobalVariableByName("zero_trial") == 1, platform
-                assert integrator.trials == 2 and integrator.alpha == 0
-        results.append(positions_of(context))
-    split = SplittingRattleIntegrator(H)
-    context = _context(water_box.system, split, "Reference", water_box.positions, water_box.velocities)
-    split.step(3)
-    results.append(positions_of(context))
-    assert np.max(np.abs(results[0] - results[1])) < AGREEMENT[spec.partition(":")[2]]
-    assert np.max(np.abs(results[0] - results[2])) < AGREEMENT["double"]
+    settings = ControllerSettings(max_trials=2, alpha_bounds=(0.15, 0.19), energy_tolerance=1e-9)
+    _falls_back_every_step_as_on_reference(
+        water_box,
+        spec,
+        lambda: AlphaRattleEnergyIntegrator(H, splitting="me2", controller=settings),
+        lambda: SplittingRattleIntegrator(H),
+        trials=2,
+    )
 
 
 @pytest.mark.parametrize("spec", configured())
