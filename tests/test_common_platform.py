@@ -619,6 +619,11 @@ def test_virtual_sites_refused_where_a_step_cannot_be_right(tip4pew_box, spec):
         assert np.array_equal(velocities_of(context), before) and integrator.steps_taken == 0
         with pytest.raises(IncompatibleSystemError, match="midpoint"):
             integrator.check_context(context)  # with the platform seen: before any step
+    # the energy mode over a splitting takes no midpoint force, but has not been run with virtual sites
+    integrator = AlphaRattleEnergyIntegrator(H, splitting="me2")
+    context = _context(system, integrator, spec, x0, v0)
+    with pytest.raises(IncompatibleSystemError, match="no test has run this combination"):
+        integrator.check_context(context)
     # α = 0 runs once check_context has seen the platform, and α set later is refused before the next step
     integrator = AlphaRattleIntegrator(H, alpha=0.0)
     context = _context(system, integrator, spec, x0, v0)

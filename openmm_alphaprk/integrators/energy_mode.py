@@ -524,6 +524,17 @@ class AlphaRattleEnergyIntegrator(_EnergyController, _AlphaRattleBase):
             return self._splitting
         return self._recorded(Splitting, SPLITTINGS)
 
+    def _massless_refusal(self, count: int, platform: str | None) -> str | None:
+        if count and self.splitting is not None:
+            return (
+                f"{type(self).__name__} over a splitting cannot integrate this system: {count} "
+                "particle(s) have zero mass (virtual sites), and no test has run this combination with "
+                "them. With virtual sites use SplittingRattleIntegrator or "
+                "RattleRescaleIntegrator(splitting=...) on CUDA, OpenCL or HIP after "
+                "integrator.check_context(context)."
+            )
+        return super()._massless_refusal(count, platform)
+
     def __repr__(self) -> str:
         if self.splitting is None:
             return super().__repr__()
