@@ -289,8 +289,9 @@ def test_cuda_check_runs_its_commands_with_arguments_the_package_accepts(tmp_pat
     assert "done in" in (out / "log.txt").read_text(encoding="utf-8")
 
 
-def test_the_half_kick_rescaling_holds_u_plus_k_plus_the_half_kicks_kinetic_energy():
-    """tools/scripts/half_kick_estimator.py's integrator (docs/physics.md): U + K + K_a at E_ref every step.
+@pytest.mark.parametrize("weight", [1.0, 2 / 3])
+def test_the_half_kick_rescaling_holds_u_plus_k_plus_the_half_kicks_kinetic_energy(weight):
+    """tools/scripts/half_kick_estimator.py's integrator (docs/physics.md): U + K + w K_a at E_ref every step.
 
     K_a computed here on its own: the velocities set to ½hF/m and projected by OpenMM's
     ``applyVelocityConstraints`` in a second Context at the same positions.
@@ -305,7 +306,7 @@ def test_the_half_kick_rescaling_holds_u_plus_k_plus_the_half_kicks_kinetic_ener
     spec.loader.exec_module(module)
     water = prepare_system("water-cluster")
     h = 0.002
-    integrator = module.HalfKickRescaleIntegrator(h)
+    integrator = module.HalfKickRescaleIntegrator(h, half_kick_weight=weight)
     platform = mm.Platform.getPlatformByName("Reference")
     context = mm.Context(water.system, integrator, platform)
     context.setState(water.state)
@@ -323,7 +324,7 @@ def test_the_half_kick_rescaling_holds_u_plus_k_plus_the_half_kicks_kinetic_ener
         probe.applyVelocityConstraints(1e-10)
         kick = probe.getState(getVelocities=True).getVelocities(asNumpy=True)._value
         half_kick = 0.5 * float((masses[:, None] * kick**2).sum())  # not the State's: a Verlet time-shift
-        held = state.getPotentialEnergy()._value + state.getKineticEnergy()._value + half_kick
+        held = state.getPotentialEnergy()._value + state.getKineticEnergy()._value + weight * half_kick
         e_ref = integrator.reference_energy._value if e_ref is None else e_ref
         assert abs(held - e_ref) < 1e-6 * abs(e_ref), (held, e_ref)
         assert (
