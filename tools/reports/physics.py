@@ -18,6 +18,9 @@ PAGE = DOCS / "physics.md"
 WATER = "physics/tip3p-2nm.json"
 SOLUTE = "physics/villin-h3.json"
 CLUSTER = "physics/water-cluster.json"
+ESTIMATOR = "physics/half_kick_tip3p-2nm.json"
+#: The rescaling every row of the estimator table is paired with (start by start).
+PLAIN_RESCALING = "rattle+rescale"
 FIGURES = DOCS / "figures"
 #: The rows whose velocities are scaled, in the page's order.
 RESCALED = ("rattle+rescale", "rattle+rescale@10", "rattle4+rescale")
@@ -368,10 +371,50 @@ def figures(data: dict, stem: str) -> None:
         plt.close(fig)
 
 
+def estimator_table(data: dict) -> str:
+    """Tabulate ⟨U⟩ − limit per kinetic-energy estimator and step, paired by start with `rattle+rescale`."""
+    runs = data["runs"]
+    rows = []
+    for step in sorted({r["timestep_fs"] for r in runs}, reverse=True):
+        at_step = [r for r in runs if r["timestep_fs"] == step]
+        plain = {r["start"]: r for r in at_step if r["row"] == PLAIN_RESCALING}
+        names = [PLAIN_RESCALING] + sorted({r["row"] for r in at_step} - {PLAIN_RESCALING})
+        for name in names:
+            mine = sorted((r for r in at_step if r["row"] == name), key=lambda r: r["start"])
+            paired = [r for r in mine if r["start"] in plain]
+            held = name.partition(", ")[2] or "U + K"
+            difference = "-"
+            below = "-"
+            if name != PLAIN_RESCALING and len(paired) > 1:
+                difference = _pm(*_mean_error([r["U"] - plain[r["start"]]["U"] for r in paired]), 2)
+                below = _pm(*_mean_error([r["H_last"] - plain[r["start"]]["H_last"] for r in paired]), 2)
+            rows.append(
+                [
+                    f"{step:g} fs",
+                    held,
+                    _pm(*_mean_error([r["U_minus_limit"] for r in mine]), 2),
+                    difference,
+                    below,
+                    "-" if name == PLAIN_RESCALING else sig(float(np.mean([r["K_a_last"] for r in mine]))),
+                    str(len(mine)),
+                ]
+            )
+    header = (
+        "step | holds | ⟨U⟩ − limit (kJ/mol) | − `rattle+rescale`'s, by start | "
+        "H at the end − `rattle+rescale`'s (kJ/mol) | K_a at the end (kJ/mol) | starts"
+    )
+    return markdown_table(header, rows) + (
+        f"\n\nMean ± standard error over the starts ({data['length_ps']:g} ps of NVE from each); "
+        f"limit: {data['limit']}. `rattle+rescale` holds H = E_ref, so the H column is how far "
+        "below E_ref the other rows keep the true energy."
+    )
+
+
 def render(write_figures: bool = False) -> dict[Path, dict[str, str]]:
     """Every generated block of docs/physics.md."""
     (water, water_source), (cluster, cluster_source) = load(WATER), load(CLUSTER)
     solute, solute_source = load(SOLUTE)
+    estimator, estimator_source = load(ESTIMATOR)
     if write_figures:
         figures(water, "tip3p-2nm")
         figures(solute, "villin-h3")
@@ -387,6 +430,10 @@ def render(write_figures: bool = False) -> dict[Path, dict[str, str]]:
         "temperature": temperature_table(water),
         "transport": transport_table(water),
         "order": order_table(water),
+        "estimator provenance": provenance_line(
+            [estimator_source], "tip3p-2nm, CPU platform, one thread, the four starts of the segments"
+        ),
+        "estimator": estimator_table(estimator),
         "cluster provenance": cluster_provenance,
         "cluster order": order_table(cluster),
         "water stress": stress_table(water, (("system", "translational", "system", "rotational"),)),
