@@ -89,3 +89,24 @@ def test_a_second_call_resumes_instead_of_running_again(bench, capsys):
     ]
     assert physics.main(["segments", *segments, "--output", str(out), "--no-progress", "--threads", "1"]) == 0
     assert {name: (run / name).read_bytes() for name in before} == before  # the finished run is not redone
+
+
+def test_the_report_of_a_cluster_in_vacuum_leaves_out_the_g_of_r_and_keeps_the_rest(tmp_path):
+    """A system without a periodic box (the water cluster): no g(r), the scaling's statistics are there."""
+    common = [
+        "--output",
+        str(tmp_path),
+        "--no-progress",
+        "--platform",
+        "Reference",
+        "--system",
+        "water-cluster",
+    ]
+    segments = ["--starts", "2", "--spacing", "0.02", "--length", "0.4", "--timesteps", "2"]
+    assert physics.main(["segments", *segments, "--rows", "rattle+rescale", *common]) == 0
+    assert physics.main(["report", *common]) == 0
+    data = json.loads((tmp_path / "physics.json").read_text(encoding="utf-8"))
+    curve = data["curves"]["rattle+rescale@2fs"]
+    assert "g" not in curve and len(curve["msd_angstrom2"]) == len(curve["lag_ps"]) > 1
+    runs = data["segments"]["rescaling"]["runs"]
+    assert len(runs) == 2 and all(r["rescalings"] == 200 for r in runs.values())

@@ -225,7 +225,7 @@ def paired_means(runs: list[Path], reference: str) -> dict:
 
 
 def _curves(runs: list[Path]) -> dict:
-    """Per setting folder: the mean O–O g(r) and oxygen MSD over its segments."""
+    """Per setting folder: the mean O–O g(r) (where the runs have a periodic box) and oxygen MSD."""
     import numpy as np
 
     from ..analysis import WATER_OXYGENS, Diffusion, oxygen_rdf
@@ -239,17 +239,18 @@ def _curves(runs: list[Path]) -> dict:
         rdfs, msds = [], []
         for run in group:
             universe = rundir.open_universe(run)
-            rdf = oxygen_rdf(universe)
+            if universe.dimensions is not None:  # a cluster in vacuum has no volume for a g(r)
+                rdf = oxygen_rdf(universe)
+                rdfs.append(rdf.results.rdf)
             msd = Diffusion(universe, select=WATER_OXYGENS).run()
-            rdfs.append(rdf.results.rdf)
             msds.append(msd.results.timeseries)
         length = min(len(m) for m in msds)
         curves[name] = {
-            "r_angstrom": rdf.results.bins.tolist(),
-            "g": np.mean(rdfs, axis=0).tolist(),
             "lag_ps": msd.results.delta_t_values[:length].tolist(),
             "msd_angstrom2": np.mean([m[:length] for m in msds], axis=0).tolist(),
         }
+        if rdfs:
+            curves[name].update(r_angstrom=rdf.results.bins.tolist(), g=np.mean(rdfs, axis=0).tolist())
     return curves
 
 
