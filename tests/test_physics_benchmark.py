@@ -34,6 +34,25 @@ def test_the_starts_are_independent_langevin_states_and_each_setting_has_a_run_p
     starts = [mm.XmlSerializer.deserialize((out / "starts" / f"start_{i}.xml").read_text()) for i in range(2)]
     x = [s.getPositions(asNumpy=True).value_in_unit(unit.nanometers) for s in starts]
     assert np.abs(x[0] - x[1]).max() > 1e-3  # 0.05 ps of Langevin dynamics apart
+    # on the constraints: projecting a start's velocities again leaves its kinetic energy as it is
+    prepared = physics._prepared(physics._parser().parse_args(["segments"]))
+    context = mm.Context(
+        prepared.system, mm.VerletIntegrator(0.001), mm.Platform.getPlatformByName("Reference")
+    )
+    masses = np.array(
+        [prepared.system.getParticleMass(i)._value for i in range(prepared.system.getNumParticles())]
+    )
+
+    def kinetic() -> float:  # from the velocities (a Verlet State's kinetic energy is time-shifted)
+        v = context.getState(getVelocities=True).getVelocities(asNumpy=True)._value
+        return 0.5 * float((masses[:, None] * v**2).sum())
+
+    for start in starts:
+        context.setState(start)
+        before = kinetic()
+        context.applyVelocityConstraints(1e-12)
+        after = kinetic()
+        assert abs(before - after) < 1e-6, (before, after)  # Langevin's own velocities: about 2 kJ/mol
     for setting in ("rattle@0.5fs", "rattle@1fs", "rattle@2fs", "rattle+rescale@2fs"):
         for i in range(2):
             run = out / "segments" / setting / f"start_{i}"
