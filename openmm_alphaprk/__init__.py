@@ -11,6 +11,7 @@ from .errors import (
     StateChangingForceWarning,
     SystemSizeError,
     TimestepUnitWarning,
+    UnconstrainedVelocitiesWarning,
     VelocityRescaleError,
 )
 from .integrators import (
@@ -42,6 +43,7 @@ __all__ = [
     "StateChangingForceWarning",
     "SystemSizeError",
     "TimestepUnitWarning",
+    "UnconstrainedVelocitiesWarning",
     "VelocityRescaleError",
     "make_smooth",
     "prepare_for_nve",

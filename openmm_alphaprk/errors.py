@@ -28,6 +28,7 @@ __all__ = [
     "StateChangingForceWarning",
     "SystemSizeError",
     "TimestepUnitWarning",
+    "UnconstrainedVelocitiesWarning",
     "VelocityRescaleError",
 ]
 
@@ -340,4 +341,26 @@ class LargeStepWarning(AlphaPRKWarning):
     ...     warnings.warn("a 4 fs step with 1 hydrogen(s) of 1.01 amu ...", LargeStepWarning)
     >>> caught[0].category.__name__
     'LargeStepWarning'
+    """
+
+
+class UnconstrainedVelocitiesWarning(AlphaPRKWarning):
+    """The velocities E_ref is about to be taken from move along the constraints.
+
+    A Langevin integrator's velocities do (OpenMM's ``LangevinMiddleIntegrator`` leaves about
+    0.1 % of the kinetic energy there on a TIP3P box). RATTLE's first step removes those
+    components, so the energy of the constrained motion is lower than the start's; an
+    integrator that holds the start's energy would put it back into the motion.
+    :func:`~openmm_alphaprk.nve.velocity_constraint_energy` measures it, and
+    ``context.applyVelocityConstraints(1e-10)`` before the first step removes it.
+
+    Examples
+    --------
+    >>> import warnings
+    >>> from openmm_alphaprk import UnconstrainedVelocitiesWarning
+    >>> with warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     warnings.warn("the start's velocities carry 2.1 kJ/mol ...", UnconstrainedVelocitiesWarning)
+    >>> caught[0].category.__name__
+    'UnconstrainedVelocitiesWarning'
     """

@@ -6,16 +6,26 @@ with a fixed α apply them like ``openmm.VerletIntegrator``; the energy mode doe
 :func:`state_changing_forces` lists them, :func:`warn_if_state_changing` issues a
 :class:`StateChangingForceWarning` for them (from the energy mode's ``check_context``), and
 :func:`prepare_for_nve` makes a System from ``createSystem``'s defaults smooth and removes them.
+:func:`velocity_constraint_energy` measures how much kinetic energy a start's velocities
+carry along the constraints (a Langevin integrator's do), which an integrator holding E_ref
+would keep; :func:`warn_if_velocities_off_constraints` issues an
+:class:`UnconstrainedVelocitiesWarning` for it (from ``step()`` after ``check_context``).
 """
 
 from __future__ import annotations
 
 import re
+import warnings
 
+import numpy as np
 import openmm as mm
 import openmm.unit as unit
 
-from .errors import LargeStepWarning, StateChangingForceWarning  # defined there; importable from here too
+from .errors import (  # defined there; importable from here too
+    LargeStepWarning,
+    StateChangingForceWarning,
+    UnconstrainedVelocitiesWarning,
+)
 from .platforms import massless_particles
 from .smooth_forces import (
     DEFAULT_SWITCH_WIDTH,
@@ -28,10 +38,13 @@ from .smooth_forces import (
 __all__ = [
     "LargeStepWarning",
     "StateChangingForceWarning",
+    "UnconstrainedVelocitiesWarning",
     "prepare_for_nve",
     "state_changing_forces",
     "step_size_problem",
+    "velocity_constraint_energy",
     "warn_if_state_changing",
+    "warn_if_velocities_off_constraints",
 ]
 
 #: Largest step (fs) with hydrogens of natural mass on constrained X–H bonds; with repartitioned ones.
@@ -333,3 +346,78 @@ def warn_if_state_changing(
         "between steps and are not applied"
     )
     return warn_listing(forces, heading, "openmm_alphaprk.nve", StateChangingForceWarning, stacklevel)
+
+
+#: Share of the kinetic energy along the constraints above which a start is warned about.
+UNCONSTRAINED_SHARE = 1e-5
+
+
+def velocity_constraint_energy(context: mm.Context, tolerance: float = 1e-10) -> tuple[float, float]:
+    """Return the kinetic energy of the velocities along the constraints, and the whole (kJ/mol).
+
+    K(v) − K(P v), P the projection onto the velocity constraints
+    (``context.applyVelocityConstraints``). The Context's velocities are put back as they
+    were afterwards.
+
+    Parameters
+    ----------
+    context
+        A Context whose velocities are set.
+    tolerance
+        The projection's constraint tolerance.
+
+    Returns
+    -------
+    tuple of float
+        (energy along the constraints, kinetic energy), kJ/mol.
+    """
+    system = context.getSystem()
+    masses = np.array(
+        [system.getParticleMass(i).value_in_unit(unit.dalton) for i in range(system.getNumParticles())]
+    )
+    nm_per_ps = unit.nanometer / unit.picosecond
+    given = context.getState(getVelocities=True).getVelocities(asNumpy=True)
+    v = given.value_in_unit(nm_per_ps)
+    kinetic = 0.5 * float((masses[:, None] * v * v).sum())
+    if system.getNumConstraints() == 0 or kinetic == 0.0:
+        return 0.0, kinetic
+    context.applyVelocityConstraints(tolerance)
+    projected = context.getState(getVelocities=True).getVelocities(asNumpy=True).value_in_unit(nm_per_ps)
+    context.setVelocities(given)
+    return kinetic - 0.5 * float((masses[:, None] * projected * projected).sum()), kinetic
+
+
+def warn_if_velocities_off_constraints(
+    context: mm.Context, who: str = "the energy-preserving mode", stacklevel: int = 2
+) -> bool:
+    """Issue an :class:`UnconstrainedVelocitiesWarning` if the velocities move along the constraints.
+
+    Warned above :data:`UNCONSTRAINED_SHARE` of the kinetic energy
+    (:func:`velocity_constraint_energy`); a Langevin integrator's velocities are there.
+
+    Parameters
+    ----------
+    context
+        The Context whose state E_ref is about to be taken from.
+    who
+        How the warning names the integrator.
+    stacklevel
+        As for :func:`warnings.warn`.
+
+    Returns
+    -------
+    bool
+        True if a warning was issued.
+    """
+    along, kinetic = velocity_constraint_energy(context)
+    if along <= UNCONSTRAINED_SHARE * kinetic:
+        return False
+    warnings.warn(
+        f"{who} takes E_ref from velocities that move along the constraints: {along:.3g} kJ/mol of the "
+        f"kinetic energy ({along / kinetic:.2g} of it; a Langevin integrator's velocities do this). RATTLE's "
+        "first step removes it and the integrator would hold it in E_ref, putting it back into the motion. "
+        "Call context.applyVelocityConstraints(1e-10) before the first step.",
+        UnconstrainedVelocitiesWarning,
+        stacklevel=stacklevel,
+    )
+    return True

@@ -35,7 +35,7 @@ import openmm.unit as unit
 
 from .. import platforms
 from .._units import to_float
-from ..nve import warn_if_state_changing
+from ..nve import warn_if_state_changing, warn_if_velocities_off_constraints
 from ..smooth_forces import warn_if_not_smooth
 from .energy_settings import PROVISIONAL_ENERGY_TOLERANCE
 from .variables import N_PARTICLES, REFERENCE_ENERGY
@@ -165,6 +165,7 @@ class _ReferenceEnergy:
         force (which changes the energy without changing the state).
         """
         self.setGlobalVariableByName("reference_set", 0)
+        self._start_velocities_checked = False
 
     @property
     def reference_energy(self) -> unit.Quantity:
@@ -195,15 +196,29 @@ class _ReferenceEnergy:
             self.setGlobalVariableByName("energy_tolerance", tolerance)
 
     def _check_system(self, context: mm.Context) -> None:
-        """Set the default tolerance from the platform's precision, and give the System's warnings."""
+        """Set the default tolerance from the platform's precision, and give the System's warnings.
+
+        The next ``step()`` looks at the start's velocities (:meth:`step`).
+        """
         super()._check_system(context)
+        self._start_velocities_checked = False
         system = context.getSystem()
         self._set_automatic_energy_tolerance(system.getNumParticles(), platforms.force_precision(context))
         warn_if_not_smooth(system, who=self._holds_energy_as)  # both point at the user's call
         warn_if_state_changing(system, who=self._holds_energy_as)
 
     def step(self, steps: int) -> None:
-        """Advance by ``steps`` steps, comparing the start state with the last step's end at the first."""
+        """Advance by ``steps`` steps, comparing the start state with the last step's end at the first.
+
+        The first call after :meth:`check_context` or :meth:`reset_reference_energy`, if E_ref is
+        still to be taken, warns when the checked Context's velocities move along the
+        constraints (:class:`~openmm_alphaprk.UnconstrainedVelocitiesWarning`).
+        """
+        if not getattr(self, "_start_velocities_checked", True):
+            self._start_velocities_checked = True
+            context = self._checked_context()
+            if context is not None and not self.getGlobalVariableByName("reference_set"):
+                warn_if_velocities_off_constraints(context, who=self._holds_energy_as, stacklevel=4)
         self.setGlobalVariableByName("state_check", 1)
         self.setGlobalVariableByName("driven", 1)
         try:
