@@ -356,11 +356,34 @@ class UnconstrainedVelocitiesWarning(AlphaPRKWarning):
 
     Examples
     --------
-    >>> import warnings
-    >>> from openmm_alphaprk import UnconstrainedVelocitiesWarning
+    Issued by the first ``step()`` after ``check_context``: two atoms on a 0.1 nm
+    constraint, one moving towards the other.
+
+    >>> import openmm, warnings
+    >>> from openmm_alphaprk import RattleRescaleIntegrator
+    >>> system = openmm.System()
+    >>> well = openmm.CustomExternalForce("x^2 + y^2 + z^2")
+    >>> for i in range(2):
+    ...     _ = system.addParticle(16.0)
+    ...     _ = well.addParticle(i, [])
+    >>> _ = system.addForce(well)
+    >>> _ = system.addConstraint(0, 1, 0.1)
+    >>> integrator = RattleRescaleIntegrator(0.002)
+    >>> context = openmm.Context(system, integrator, openmm.Platform.getPlatformByName("Reference"))
+    >>> context.setPositions([[0.0, 0.0, 0.0], [0.1, 0.0, 0.0]])
+    >>> context.setVelocities([[0.0, 1.0, 0.0], [-0.1, 1.0, 0.0]])
     >>> with warnings.catch_warnings(record=True) as caught:
     ...     warnings.simplefilter("always")
-    ...     warnings.warn("the start's velocities carry 2.1 kJ/mol ...", UnconstrainedVelocitiesWarning)
-    >>> caught[0].category.__name__
-    'UnconstrainedVelocitiesWarning'
+    ...     integrator.check_context(context)
+    ...     integrator.step(1)
+    >>> [w.category.__name__ for w in caught]
+    ['UnconstrainedVelocitiesWarning']
+    >>> context.setVelocities([[0.0, 1.0, 0.0], [-0.1, 1.0, 0.0]])  # the same start again
+    >>> context.applyVelocityConstraints(1e-10)  # the fix: E_ref of the constrained motion
+    >>> integrator.reset_reference_energy()
+    >>> with warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     integrator.step(1)
+    >>> caught
+    []
     """
