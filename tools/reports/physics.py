@@ -26,6 +26,8 @@ FIGURES = DOCS / "figures"
 RESCALED = ("rattle+rescale", "rattle+rescale@10", "rattle4+rescale")
 #: The temperatures of a group, in the equipartition table's order.
 TEMPERATURES = ("total", "translational", "rotational")
+#: The groups of a partition in the order the pages name them.
+_GROUP_ORDER = ("system", "half 1", "half 2", "solute", "solvent")
 #: How far (combined standard errors) a rescaled row may sit from the reference (the issue's goal).
 GOAL_ERRORS = 2.0
 #: A published TIP3P self-diffusion coefficient beside ours (1e-5 cm²/s).
@@ -66,10 +68,17 @@ def _provenance(source: Source, data: dict) -> str:
     return provenance_line([source], "; ".join([f"{data['system']}, {platform} platform", *parts]))
 
 
+def _name(integrator: str) -> str:
+    """Return the registry's canonical name of ``integrator`` (older runs wrote ``split-me``)."""
+    from openmm_alphaprk.runs.integrator_names import parse_integrator
+
+    return parse_integrator(integrator).name
+
+
 def _label(setting: str) -> str:
     """``rattle+rescale h=2 fs`` → ``rattle+rescale`` at 2 fs."""
     name, _, step = setting.partition(" h=")
-    return f"`{name}` at {step}"
+    return f"`{_name(name)}` at {step}"
 
 
 def _mean_error(values) -> tuple[float, float]:
@@ -144,6 +153,49 @@ def _flag(flag: dict | str) -> str:
     )
 
 
+def solute_table(data: dict) -> str:
+    """Solute and solvent temperatures per setting, their gap, and the gaps against the reference's."""
+    eq = data["segments"]["equipartition"]
+    reference = eq["reference"]
+    gaps = {
+        "solute − solvent": ("solute", "total", "solvent", "total"),
+        "translational − rotational and internal": (
+            "system",
+            "translational",
+            "system",
+            "rotational and internal",
+        ),
+    }
+
+    def gap(setting: dict, key: str) -> np.ndarray:
+        a, pa, b, pb = gaps[key]
+        return _segment_gap(setting["groups"][a][pa], setting["groups"][b][pb])
+
+    rows = []
+    for label, setting in {reference["label"]: reference, **eq["settings"]}.items():
+        groups = setting["groups"]
+        cells = [_label(label) + (" (reference)" if setting is reference else "")]
+        cells += [
+            _pm(groups[g]["total"]["temperature_K"], groups[g]["total"]["standard_error_K"], 4)
+            for g in ("solute", "solvent")
+        ]
+        for key in gaps:
+            cells.append(_pm(*_mean_error(gap(setting, key)), 2))
+            cells.append(
+                "-" if setting is reference else _pm(*_mean_error(gap(setting, key) - gap(reference, key)), 2)
+            )
+        rows.append(cells)
+    header = (
+        "setting | T solute (K) | T solvent (K) | solute − solvent (K) | − reference's, by start (K) "
+        "| translation − rotation and internal (K) | − reference's, by start (K)"
+    )
+    return markdown_table(header, rows) + (
+        f"\n\nReference: {_label(reference['label'])}. Mean ± standard error over the segments (one "
+        "temperature per segment, 2⟨K⟩/(N k_B) of physical_validation's partition over its frames); "
+        "the differences to the reference's gap are paired by start (same E_ref)."
+    )
+
+
 def goal_verdict(data: dict) -> str:
     """Judge the goal: every rescaled row's partitions within 2 combined errors of the reference's."""
     settings = data["segments"]["equipartition"]["settings"]
@@ -151,14 +203,20 @@ def goal_verdict(data: dict) -> str:
     for label, setting in settings.items():
         if label.split(" h=")[0] not in RESCALED:
             continue
+        rattle = settings.get(f"rattle h={label.partition(' h=')[2]}", {}).get("against_reference", {})
         for group, partitions in setting.get("against_reference", {}).items():
             for partition, entry in partitions.items():
                 z = entry.get("in_errors")
                 if z is not None and abs(z) > GOAL_ERRORS:
-                    misses.append(f"{_label(label)} {group} {partition} {z:+.1f}")
+                    same_step = rattle.get(group, {}).get(partition, {}).get("in_errors")
+                    beside = "" if same_step is None else f" (RATTLE at the step {same_step:+.1f})"
+                    misses.append(f"{_label(label)} {group} {partition} {z:+.1f}{beside}")
     if not misses:
+        names = {"system": "whole system", "half 1": "random halves", "half 2": "random halves"}
+        seen = {g for setting in settings.values() for g in setting.get("against_reference", {})}
+        groups = ", ".join(dict.fromkeys(names.get(g, g) for g in sorted(seen, key=_GROUP_ORDER.index)))
         return (
-            f"**Met**: every partition (whole system, random halves) of every rescaled row lies within "
+            f"**Met**: every partition ({groups}) of every rescaled row lies within "
             f"{GOAL_ERRORS:g} combined standard errors of the reference's."
         )
     return "**Not met** for: " + "; ".join(misses) + " (combined standard errors)."
@@ -168,11 +226,15 @@ def transport_table(data: dict) -> str:
     """D, g(r) first peak, τ₂ and the VACF's first minimum per setting, against the reference."""
     settings = data["transport"]["settings"]
     reference = next(s for s in settings if s["integrator"] == "rattle" and s["timestep_ps"] == 0.0005)
+    corrected = reference["mean"].get("diffusion") is not None  # Yeh–Hummer needs a cubic box
+    integral = reference["mean"].get("tau2_ps") is not None  # C₂ fell below its threshold in the segments
     quantities = (
-        ("diffusion", "D (1e-5 cm²/s, Yeh–Hummer)", 3),
+        ("diffusion", "D (1e-5 cm²/s, Yeh–Hummer)", 3)
+        if corrected
+        else ("diffusion_pbc", "D in the box (1e-5 cm²/s)", 3),
         ("rdf_peak_r_angstrom", "g(r) peak r (Å)", 4),
         ("rdf_peak_g", "g(r) peak height", 3),
-        ("tau2_ps", "τ₂ (ps)", 3),
+        ("tau2_ps", "τ₂ (ps)", 3) if integral else ("tau2_fit_ps", "τ₂, exponential fit (ps)", 3),
         ("vacf_first_minimum_ps", "VACF first minimum (ps)", 3),
     )
     rows = []
@@ -187,21 +249,38 @@ def transport_table(data: dict) -> str:
                     text += f" ({(mean - reference['mean'][key]) / combined:+.1f})"
             row.append(text)
         rows.append(row)
+    if corrected:
+        d_text = (
+            "plus the Yeh–Hummer correction with TIP3P's viscosity "
+            f"{data['transport']['parameters'].get('viscosity_mPa_s', 0.321)} mPa·s (González & Abascal, "
+            f"J. Chem. Phys. 132 (2010) 096101). A published value: {PUBLISHED_D}."
+        )
+    else:
+        d_text = "without a finite-size correction (the box is not cubic, where Yeh–Hummer's applies)."
+    tau_text = (
+        ""
+        if integral
+        else " τ₂: time constant of an exponential fitted to C₂ of the water dipole (C₂ stays above its "
+        "integration threshold over these segments)."
+    )
     return markdown_table(["setting"] + [title for _, title, _ in quantities], rows) + (
         "\n\nMean ± standard error over the segments; in brackets the distance from RATTLE at 0.5 fs in "
         "combined standard errors. D: water oxygens' MSD (MDAnalysis `EinsteinMSD`) fitted over 10–60 % of "
-        f"the longest lag, plus the Yeh–Hummer correction with TIP3P's viscosity "
-        f"{data['transport']['parameters'].get('viscosity_mPa_s', 0.321)} mPa·s (González & Abascal, "
-        f"J. Chem. Phys. 132 (2010) 096101). A published value: {PUBLISHED_D}."
+        f"the longest lag, {d_text}{tau_text}"
     )
+
+
+def _rescalings_by_setting(data: dict) -> dict[str, list[dict]]:
+    """Return the segments' rescaling records (``summary.json``'s ``rescaling``) by setting folder."""
+    by_setting: dict[str, list[dict]] = {}
+    for path, totals in data["segments"]["rescaling"]["runs"].items():
+        by_setting.setdefault(Path(path).parent.name, []).append(totals)
+    return by_setting
 
 
 def rescaling_table(data: dict) -> str:
     """Tabulate what the scaling did per rescaled setting: mean and RMS of s − 1, energy added per ns."""
-    runs = data["segments"]["rescaling"]["runs"]
-    by_setting: dict[str, list[dict]] = {}
-    for path, totals in runs.items():
-        by_setting.setdefault(Path(path).parent.name, []).append(totals)
+    by_setting = _rescalings_by_setting(data)
     rows = []
     for name, group in sorted(by_setting.items(), key=lambda item: (_step(item[0]), item[0])):
         cells = []
@@ -215,6 +294,42 @@ def rescaling_table(data: dict) -> str:
     )
 
 
+def scaling_power_table(data: dict) -> str:
+    """Tabulate the scaling's statistics per rescaled row and step over the segments; their powers of h."""
+    by_setting = _rescalings_by_setting(data)
+    rows = []
+    for folder, group in sorted(
+        by_setting.items(), key=lambda item: (item[0].split("@")[0], -_step(item[0]))
+    ):
+        rms = [g["rms_scale_change"] for g in group]
+        added = [g["added_energy_per_ns"] for g in group]
+        rows.append(
+            [
+                _setting(folder),
+                _pm(*_mean_error(rms), 2),
+                _pm(*_mean_error(added), 2),
+                _pm(*_mean_error(np.abs(added)), 2),
+                str(len(group)),
+            ]
+        )
+    fits = data["segments"]["rescaling"].get("fits", {})
+    powers = "; ".join(
+        f"`{name}`: "
+        + ", ".join(
+            f"{label} {fit['power_of_h'][key]:.2f} (expected {fit['expected_power'][key]})"
+            for key, label in (("rms_scale_change", "RMS s − 1"), ("added_energy_per_ns", "|energy added|"))
+        )
+        for name, fit in fits.items()
+        if fit.get("power_of_h")
+    )
+    header = "setting | RMS s − 1 | energy added (kJ/mol/ns) | \\|energy added\\| (kJ/mol/ns) | starts"
+    return markdown_table(header, rows) + (
+        "\n\nPer segment over all its rescalings (`summary.json`'s `rescaling`), mean ± standard error "
+        "over the segments; energy added = −Σ(H − E_ref before each scaling) per ns. Fitted powers of h "
+        f"(log of the mean over the segments against log h): {powers or '-'}."
+    )
+
+
 def order_table(data: dict) -> str:
     """Tabulate the order of H's fluctuations and the rescaled rows' round-off, from the order runs."""
     order = data["order"]["order"]
@@ -222,11 +337,11 @@ def order_table(data: dict) -> str:
     for name, entry in order.items():
         if entry["kind"] == "order":
             fluctuations = ", ".join(f"{sig(v, 2)}" for v in entry["rmsd_H_kJ_per_mol"])
-            rows.append([f"`{name}`", fluctuations, f"{entry['fitted_order']:.2f}"])
+            rows.append([f"`{_name(name)}`", fluctuations, f"{entry['fitted_order']:.2f}"])
         else:
             relative = ", ".join(sig(r["relative"], 2) for r in entry["rows"])
             verdict = "round-off" if all(r["at_round_off"] for r in entry["rows"]) else "above round-off"
-            rows.append([f"`{name}`", f"RMS(H − E_ref)/|E_ref|: {relative}", verdict])
+            rows.append([f"`{_name(name)}`", f"RMS(H − E_ref)/|E_ref|: {relative}", verdict])
     steps = ", ".join(f"{h:g}" for h in data["arguments"]["order"]["timesteps"])
     fits = data["order"]["rescaling"].get("fits", {})
     powers = "; ".join(
@@ -288,7 +403,7 @@ def _step(folder: str) -> float:
 def _setting(folder: str) -> str:
     """Name the setting of a run folder ``NAME@2fs`` as the page does: ```NAME`` at 2 fs`."""
     integrator, _, step = folder.rpartition("@")
-    return f"`{integrator}` at {step[:-2]} fs"
+    return f"`{_name(integrator)}` at {step[:-2]} fs"
 
 
 def _signed(value: float, error: float) -> str:
@@ -436,8 +551,13 @@ def render(write_figures: bool = False) -> dict[Path, dict[str, str]]:
         "estimator": estimator_table(estimator),
         "cluster provenance": cluster_provenance,
         "cluster order": order_table(cluster),
+        "cluster scaling provenance": cluster_provenance,
+        "cluster scaling": scaling_power_table(cluster),
         "water stress": stress_table(water, (("system", "translational", "system", "rotational"),)),
         "solute provenance": _provenance(solute_source, solute),
         "solute stress": stress_table(solute, solute_gaps),
+        "solute equipartition": solute_table(solute) + "\n\n" + goal_verdict(solute),
+        "solute temperature": temperature_table(solute),
+        "solute transport": transport_table(solute),
     }
     return {PAGE: blocks}

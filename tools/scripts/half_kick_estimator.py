@@ -90,6 +90,8 @@ def run(
     """Run ``integrator`` from ``state``; ⟨U⟩, ⟨K⟩ and the last H (kJ/mol), H read every 0.02 ps."""
     context = mm.Context(system, integrator, mm.Platform.getPlatformByName("CPU"), {"Threads": "1"})
     context.setState(state)
+    context.applyConstraints(1e-12)  # a start written before bench physics projected its starts
+    context.applyVelocityConstraints(1e-12)
     every = round(0.02 / (timestep_fs / 1000.0))
     energies = []
     for i in range(round(length_ps / 0.02) + 1):
