@@ -173,8 +173,9 @@ def solute_table(data: dict) -> str:
 
     rows = []
     for label, setting in {reference["label"]: reference, **eq["settings"]}.items():
+        is_reference = label == reference["label"]
         groups = setting["groups"]
-        cells = [_label(label) + (" (reference)" if setting is reference else "")]
+        cells = [_label(label) + (" (reference)" if is_reference else "")]
         cells += [
             _pm(groups[g]["total"]["temperature_K"], groups[g]["total"]["standard_error_K"], 4)
             for g in ("solute", "solvent")
@@ -182,7 +183,7 @@ def solute_table(data: dict) -> str:
         for key in gaps:
             cells.append(_pm(*_mean_error(gap(setting, key)), 2))
             cells.append(
-                "-" if setting is reference else _pm(*_mean_error(gap(setting, key) - gap(reference, key)), 2)
+                "-" if is_reference else _pm(*_mean_error(gap(setting, key) - gap(reference, key)), 2)
             )
         rows.append(cells)
     header = (
