@@ -17,7 +17,6 @@ from __future__ import annotations
 import re
 import warnings
 
-import numpy as np
 import openmm as mm
 import openmm.unit as unit
 
@@ -26,6 +25,7 @@ from .errors import (  # defined there; importable from here too
     StateChangingForceWarning,
     UnconstrainedVelocitiesWarning,
 )
+from .observables import masses
 from .platforms import massless_particles
 from .smooth_forces import (
     DEFAULT_SWITCH_WIDTH,
@@ -372,19 +372,17 @@ def velocity_constraint_energy(context: mm.Context, tolerance: float = 1e-10) ->
         (energy along the constraints, kinetic energy), kJ/mol.
     """
     system = context.getSystem()
-    masses = np.array(
-        [system.getParticleMass(i).value_in_unit(unit.dalton) for i in range(system.getNumParticles())]
-    )
+    m = masses(system)[:, None]
     nm_per_ps = unit.nanometer / unit.picosecond
     given = context.getState(getVelocities=True).getVelocities(asNumpy=True)
     v = given.value_in_unit(nm_per_ps)
-    kinetic = 0.5 * float((masses[:, None] * v * v).sum())
+    kinetic = 0.5 * float((m * v * v).sum())
     if system.getNumConstraints() == 0 or kinetic == 0.0:
         return 0.0, kinetic
     context.applyVelocityConstraints(tolerance)
     projected = context.getState(getVelocities=True).getVelocities(asNumpy=True).value_in_unit(nm_per_ps)
     context.setVelocities(given)
-    return kinetic - 0.5 * float((masses[:, None] * projected * projected).sum()), kinetic
+    return kinetic - 0.5 * float((m * projected * projected).sum()), kinetic
 
 
 def warn_if_velocities_off_constraints(

@@ -8,6 +8,7 @@ import openmm.unit as unit
 import pytest
 
 from openmm_alphaprk.benchmarks import physics
+from openmm_alphaprk.observables import masses
 from openmm_alphaprk.runs import read_energies
 
 
@@ -39,13 +40,11 @@ def test_the_starts_are_independent_langevin_states_and_each_setting_has_a_run_p
     context = mm.Context(
         prepared.system, mm.VerletIntegrator(0.001), mm.Platform.getPlatformByName("Reference")
     )
-    masses = np.array(
-        [prepared.system.getParticleMass(i)._value for i in range(prepared.system.getNumParticles())]
-    )
+    m = masses(prepared.system)[:, None]
 
     def kinetic() -> float:  # from the velocities (a Verlet State's kinetic energy is time-shifted)
         v = context.getState(getVelocities=True).getVelocities(asNumpy=True)._value
-        return 0.5 * float((masses[:, None] * v**2).sum())
+        return 0.5 * float((m * v**2).sum())
 
     for start in starts:
         context.setState(start)

@@ -26,6 +26,11 @@ FIGURES = DOCS / "figures"
 RESCALED = ("rattle+rescale", "rattle+rescale@10", "rattle4+rescale")
 #: The temperatures of a group, in the equipartition table's order.
 TEMPERATURES = ("total", "translational", "rotational")
+#: The temperature gaps read on the solvated solute: (group, partition) minus (group, partition).
+SOLUTE_GAPS = (
+    ("system", "translational", "system", "rotational and internal"),
+    ("solute", "total", "solvent", "total"),
+)
 #: The groups of a partition in the order the pages name them.
 _GROUP_ORDER = ("system", "half 1", "half 2", "solute", "solvent")
 #: How far (combined standard errors) a rescaled row may sit from the reference (the issue's goal).
@@ -157,18 +162,9 @@ def solute_table(data: dict) -> str:
     """Solute and solvent temperatures per setting, their gap, and the gaps against the reference's."""
     eq = data["segments"]["equipartition"]
     reference = eq["reference"]
-    gaps = {
-        "solute − solvent": ("solute", "total", "solvent", "total"),
-        "translational − rotational and internal": (
-            "system",
-            "translational",
-            "system",
-            "rotational and internal",
-        ),
-    }
 
-    def gap(setting: dict, key: str) -> np.ndarray:
-        a, pa, b, pb = gaps[key]
+    def gap(setting: dict, gap: tuple[str, str, str, str]) -> np.ndarray:
+        a, pa, b, pb = gap
         return _segment_gap(setting["groups"][a][pa], setting["groups"][b][pb])
 
     rows = []
@@ -180,15 +176,14 @@ def solute_table(data: dict) -> str:
             _pm(groups[g]["total"]["temperature_K"], groups[g]["total"]["standard_error_K"], 4)
             for g in ("solute", "solvent")
         ]
-        for key in gaps:
-            cells.append(_pm(*_mean_error(gap(setting, key)), 2))
+        for pair in SOLUTE_GAPS:
+            cells.append(_pm(*_mean_error(gap(setting, pair)), 2))
             cells.append(
-                "-" if is_reference else _pm(*_mean_error(gap(setting, key) - gap(reference, key)), 2)
+                "-" if is_reference else _pm(*_mean_error(gap(setting, pair) - gap(reference, pair)), 2)
             )
         rows.append(cells)
-    header = (
-        "setting | T solute (K) | T solvent (K) | solute − solvent (K) | − reference's, by start (K) "
-        "| translation − rotation and internal (K) | − reference's, by start (K)"
+    header = "setting | T solute (K) | T solvent (K) | " + " | ".join(
+        f"{a} {pa} − {b} {pb} (K) | − reference's, by start (K)" for a, pa, b, pb in SOLUTE_GAPS
     )
     return markdown_table(header, rows) + (
         f"\n\nReference: {_label(reference['label'])}. Mean ± standard error over the segments (one "
@@ -535,10 +530,6 @@ def render(write_figures: bool = False) -> dict[Path, dict[str, str]]:
         figures(water, "tip3p-2nm")
         figures(solute, "villin-h3")
     cluster_provenance = _provenance(cluster_source, cluster).replace("CPU platform", "Reference platform")
-    solute_gaps = (
-        ("system", "translational", "system", "rotational and internal"),
-        ("solute", "total", "solvent", "total"),
-    )
     blocks = {
         "water provenance": _provenance(water_source, water),
         "equipartition": equipartition_table(water) + "\n\n" + goal_verdict(water),
@@ -556,7 +547,7 @@ def render(write_figures: bool = False) -> dict[Path, dict[str, str]]:
         "cluster scaling": scaling_power_table(cluster),
         "water stress": stress_table(water, (("system", "translational", "system", "rotational"),)),
         "solute provenance": _provenance(solute_source, solute),
-        "solute stress": stress_table(solute, solute_gaps),
+        "solute stress": stress_table(solute, SOLUTE_GAPS),
         "solute equipartition": solute_table(solute) + "\n\n" + goal_verdict(solute),
         "solute temperature": temperature_table(solute),
         "solute transport": transport_table(solute),
