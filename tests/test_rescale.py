@@ -605,7 +605,9 @@ def test_a_step_between_rescalings_is_the_unrescaled_integrators_step(options, u
     that rescales saves its start, reads the energy and sums K. With RATTLE as the
     base the program declares RATTLE's per-DOF variables (x0, v0) and no others: on the
     Reference and CPU platforms each per-DOF step copies every one of them per degree of
-    freedom.
+    freedom. No pass of such a step reads a global variable: on the common platform the
+    globals a step changes on the host (the interval's count) are uploaded only before a
+    kernel that reads one, so the steps between rescalings upload nothing.
     """
     integrator = RattleRescaleIntegrator(H, rescale_interval=10, **options)
     base = unrescaled()
@@ -614,6 +616,15 @@ def test_a_step_between_rescalings_is_the_unrescaled_integrators_step(options, u
     assert base_step[0][0] == "update context state"  # OpenMM's, which NVE leaves out
     assert between == base_step[1:]
     assert not [work for work in between if "energy" in work[2]]
+    global_names = {integrator.getGlobalVariableName(i) for i in range(integrator.getNumGlobalVariables())}
+    read = {
+        name
+        for kind, _variable, expression in between
+        if kind in ("per DOF", "sum")
+        for name in re.findall(r"[A-Za-z_]\w*", expression)
+        if name in global_names
+    }
+    assert not read
     rescaling = _work_of_a_step(
         integrator,
         _BETWEEN_RESCALINGS

@@ -234,13 +234,12 @@ def test_cuda_check_runs_its_commands_with_arguments_the_package_accepts(tmp_pat
         **os.environ,
         "PATH": f"{bin_dir}:{os.environ['PATH']}",
         "OUT": str(out),
-        "WORK": str(tmp_path / "work"),
+        "WORK": str(tmp_path / "work" / "new"),  # a folder the script creates
         "STAND_IN_LOG": str(log),
         "PYTHONPATH": str(ROOT),
         "SURVEYS": "1",
         "PHYSICS": "1",
     }
-    (tmp_path / "work").mkdir()
     result = subprocess.run(
         ["bash", str(SCRIPTS / "cuda_check.sh")],
         cwd=ROOT,

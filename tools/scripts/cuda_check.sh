@@ -44,6 +44,7 @@ OUT=${OUT:-cuda-check}
 mkdir -p "$OUT"
 OUT=$(cd "$OUT" && pwd)
 WORK=${WORK:-$(mktemp -d)}
+mkdir -p "$WORK"
 export PYTHONUNBUFFERED=1
 PLATFORM=${PLATFORM:-CUDA}
 PRECISIONS=${PRECISIONS:-mixed single}
