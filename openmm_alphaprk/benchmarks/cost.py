@@ -143,7 +143,9 @@ def interleaved_timing(
     """Median wall time (ms) per benchmark step of each integrator, from interleaved rounds.
 
     Each round steps every integrator in turn, so that any load on the machine falls on
-    all of them alike. ``integrators`` maps a name to (integrator, integrator steps per
+    all of them alike; every second round takes them in reverse order, so that what ran
+    just before an integrator (and the machine's drift within a round) does too.
+    ``integrators`` maps a name to (integrator, integrator steps per
     benchmark step) or (integrator, steps per benchmark step, context); each round takes
     ``steps`` benchmark steps of each. Where the context is given, each timed stretch
     lies between two ``getState(getEnergy=True)`` calls, which wait for the device (as
@@ -151,8 +153,10 @@ def interleaved_timing(
     kernels it queued have run. With no rounds the result is empty.
     """
     times: dict[str, list[float]] = {name: [] for name in integrators}
+    order = list(integrators)
     for round_index in range(rounds):
-        for name, (integrator, substeps, *context) in integrators.items():
+        for name in order if round_index % 2 == 0 else order[::-1]:
+            integrator, substeps, *context = integrators[name]
             if progress:
                 print(f"round {round_index + 1}/{rounds}: {name}", file=sys.stderr, flush=True)
             if context:

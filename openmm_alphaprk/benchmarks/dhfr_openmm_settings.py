@@ -30,7 +30,6 @@ import argparse
 import copy
 import gzip
 import json
-import statistics
 import sys
 import time
 from importlib import resources
@@ -39,6 +38,7 @@ import openmm as mm
 import openmm.app as app
 import openmm.unit as unit
 
+from openmm_alphaprk.benchmarks.cost import interleaved_timing
 from openmm_alphaprk.integrators.restore import counted_force_evaluations
 from openmm_alphaprk.runs.integrator_names import label, make_integrator
 from openmm_alphaprk.smooth_forces import make_smooth
@@ -142,16 +142,11 @@ def main(argv: list[str] | None = None) -> int:
         flush=True,
     )
     counted = {name: _counts(integrator) for name, (integrator, _) in rows.items()}
-    times: dict[str, list[float]] = {name: [] for name in rows}
-    for _ in range(args.rounds):
-        for name, (integrator, _) in rows.items():
-            context = contexts[name]
-            context.getState(getEnergy=True)
-            begin = time.perf_counter()
-            integrator.step(args.steps)
-            context.getState(getEnergy=True)
-            times[name].append((time.perf_counter() - begin) / args.steps * 1e3)
-    medians = {name: statistics.median(values) for name, values in times.items()}
+    medians = interleaved_timing(
+        {name: (integrator, 1, contexts[name]) for name, (integrator, _) in rows.items()},
+        args.steps,
+        args.rounds,
+    )
     timed = args.steps * args.rounds
     per_step = {
         name: [(after - before) / timed for after, before in zip(_counts(integrator), counted[name])]
