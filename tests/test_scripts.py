@@ -329,3 +329,39 @@ def test_the_half_kick_rescaling_holds_u_plus_k_plus_the_half_kicks_kinetic_ener
         assert (
             half_kick > 0 and abs(integrator.getGlobalVariableByName("half_kick_energy") - half_kick) < 1e-6
         )
+
+
+def test_instruction_cost_takes_the_difference_of_two_counts_per_step(tmp_path):
+    """instruction_cost.py with a stand-in valgrind: (count after warm + steps − after warm) / steps.
+
+    The stand-in prints callgrind's line "Collected : N" for a start-up of 5e8 instructions
+    plus 3e7 per step (RATTLE) or 3.3e7 (the other row); the script must cancel the start-up
+    and give the second row 1.1× the first's instructions per step.
+    """
+    bin_dir = tmp_path / "bin"
+    bin_dir.mkdir()
+    valgrind = bin_dir / "valgrind"
+    valgrind.write_text(
+        "#!/bin/sh\n"
+        "name=$(eval echo \\${$(($# - 2))}); steps=$(eval echo \\${$(($# - 1))})\n"
+        'per=30000000; [ "$name" = rattle ] || per=33000000\n'
+        'echo "==1== Collected : $((500000000 + steps * per))" >&2\n',
+        encoding="utf-8",
+    )
+    valgrind.chmod(stat.S_IRWXU)
+    out = tmp_path / "out.json"
+    result = subprocess.run(
+        [sys.executable, str(SCRIPTS / "instruction_cost.py"), "--integrators", "rattle", "rattle+rescale@10"]
+        + ["--steps", "200", "--warm", "20", "--json", str(out), "--note", "stand-in"],
+        env={**os.environ, "PATH": f"{bin_dir}:{os.environ['PATH']}"},
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert result.returncode == 0, result.stderr[-2000:]
+    data = json.loads(out.read_text(encoding="utf-8"))
+    rattle, interval = data["rows"]
+    assert (rattle["integrator"], interval["integrator"]) == ("rattle", "rattle+rescale@10")
+    assert rattle["instructions_per_step"] == 30000000 and rattle["ratio"] == 1.0
+    assert interval["ratio"] == pytest.approx(1.1, rel=1e-12)
+    assert data["note"] == "stand-in" and "1.1000" in result.stdout

@@ -66,11 +66,9 @@ _AXES = {"x": "vector(1,0,0)", "y": "vector(0,1,0)", "z": "vector(0,0,1)"}
 #: The centre-of-mass velocity P/M, per degree of freedom, from the carried momentum.
 _CENTRE_OF_MASS_VELOCITY = "vector(momentum_x, momentum_y, momentum_z)/total_mass"
 #: The per-DOF variable that holds it (set where P is measured): the scaling reads it with no
-#: vector function. On the Reference and CPU platforms a per-DOF step with one costs about
-#: ten plain passes (its variables looked up by name per particle), while one more per-DOF
-#: variable adds a copy per degree of freedom to every pass: carried, `rattle+rescale@10`
-#: measured 1.020× RATTLE's instructions per step on tip3p-2nm instead of 1.031× (@100:
-#: 1.0075× instead of 1.0061×).
+#: vector function. On the Reference and CPU platforms a per-DOF step with one costs many
+#: plain passes (its variables looked up by name per particle), while one more per-DOF
+#: variable adds a copy per degree of freedom to every pass; docs/platforms.md counts both.
 _CENTRE_VELOCITY = "centre_velocity"
 #: The rotation's part of the rigid-body velocity at the positions x, per degree of freedom.
 _ROTATION_VELOCITY = "cross(vector(omega_x, omega_y, omega_z), x - vector(centre_x, centre_y, centre_z))"

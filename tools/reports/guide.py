@@ -305,6 +305,8 @@ RESCALE_COST = (
     "platforms/bench_cost_interval_cpu_tip3p-2nm_rattle_program.json",
     "platforms/bench_cost_interval_cpu_tip3p-3nm_rattle_program.json",
     "platforms/bench_cost_interval_opencl_tip3p-2nm_rattle_program.json",
+    "platforms/bench_cost_interval_cpu_tip3p-2nm_41rounds.json",
+    "platforms/bench_cost_interval_cpu_tip3p-3nm_41rounds.json",
     "platforms/bench_cost_cpu_tip3p-2nm_7rounds.json",
     "platforms/bench_cost_cpu_tip3p-3nm_7rounds.json",
     "platforms/bench_cost_cpu_tip3p-2nm.json",
@@ -351,6 +353,49 @@ def rescale_cost_table() -> str:
     machines = " and ".join(sorted({source(p).machine for p in RESCALE_COST}))
     caption = "RATTLE + rescaling's time per step over RATTLE's in the same run of `alphaprk bench cost`"
     return table(runs, columns, f"{caption}; {machines}:")
+
+
+#: tools/scripts/instruction_cost.py, each file one run: the interval programs before and after
+#: they kept P/M per degree of freedom.
+INSTRUCTION_COST = (
+    "platforms/instruction_cost_tip3p-2nm_vector_centre.json",
+    "platforms/instruction_cost_tip3p-2nm.json",
+    "platforms/instruction_cost_tip3p-2nm_again.json",
+    "platforms/instruction_cost_tip3p-3nm_vector_centre.json",
+    "platforms/instruction_cost_tip3p-3nm.json",
+)
+
+
+def instruction_cost_table() -> str:
+    """RATTLE + rescaling's instructions per step over RATTLE's, counted by callgrind in each run."""
+
+    def rows(r: dict) -> dict[str, dict]:
+        return {row["integrator"]: row for row in r["rows"]}
+
+    def ratio(name: str):
+        return lambda r: f"{rows(r)[name]['ratio']:.4f}" if name in rows(r) else ""
+
+    runs = [{**load(p)[0], "path": p} for p in INSTRUCTION_COST]
+    columns = [
+        Column("data", lambda r: link(r["path"])),
+        Column("program", lambda r: r.get("note", "")),
+        Column("system", "{system}"),
+        Column(
+            "RATTLE, M instructions/step", lambda r: f"{rows(r)['rattle']['instructions_per_step'] / 1e6:.1f}"
+        ),
+        Column("every step", ratio("rattle+rescale")),
+        Column("every 10th", ratio("rattle+rescale@10")),
+        Column("every 100th", ratio("rattle+rescale@100")),
+    ]
+    counted = {r["system"]: re.search(r"/ (\d+);", r["header"]).group(1) for r in runs}
+    steps = ", ".join(f"{n} steps on {system}" for system, n in counted.items())
+    caption = provenance_line(
+        [source(p) for p in INSTRUCTION_COST],
+        "`python tools/scripts/instruction_cost.py`: instructions per step over RATTLE's in the same run, "
+        "counted by valgrind's callgrind on the CPU platform with one thread: the difference of two runs' "
+        f"counts over the steps between them ({steps})",
+    )
+    return table(runs, columns, caption)
 
 
 # ------------------------------------------------------------------ smooth_forces.md
@@ -583,6 +628,7 @@ def render() -> dict[Path, dict[str, str]]:
             "h100 tests": h100_tests_table(),
             "rescale cost": rescale_cost_table(),
             "rescale sync cost": sync_cost_table(),
+            "instruction cost": instruction_cost_table(),
         },
         DOCS / "smooth_forces.md": {"pme tolerance table": pme_table(), "diagnosis": diagnosis_table()},
         DOCS / "own_files.md": {f"peptide {k}": peptide_table(v) for k, v in PEPTIDE.items()},
